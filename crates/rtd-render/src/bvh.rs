@@ -1,0 +1,323 @@
+//! Ray queries over the scene's triangles: an obvhs CWBVH with a watertight triangle test.
+//!
+//! obvhs reorders primitives; `slot_tri` maps a BVH slot back to the scene's triangle index.
+//! The triangle test is Woop, Benthin & Wald's watertight algorithm (JCGT 2013), which never
+//! lets a ray slip between two triangles sharing an edge. Alpha-masked triangles are tested
+//! against their cut-out in the traversal callback, so cut-outs also let shadow rays through.
+
+use std::time::Duration;
+
+use glam::{Vec2, Vec3, Vec3A};
+use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
+use obvhs::ray::{Ray as BvhRay, RayHit};
+use obvhs::triangle::Triangle as BvhTriangle;
+use obvhs::BvhBuildParams;
+use rtd_scene::{AlphaMode, Scene};
+
+/// The closest intersection found by [`SceneBvh::intersect`].
+#[derive(Debug, Clone, Copy)]
+pub struct Hit {
+    /// Index into `Scene::triangles`.
+    pub triangle: u32,
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// Barycentric weights of vertices 0, 1, 2.
+    pub bary: Vec3,
+}
+
+/// Per-ray constants of the watertight test.
+#[derive(Clone, Copy)]
+struct RayShear {
+    origin: Vec3A,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    s: Vec3,
+}
+
+impl RayShear {
+    #[inline]
+    fn new(origin: Vec3, dir: Vec3) -> Self {
+        // Choose the dominant axis as z; swap x and y to keep the winding when it is negative.
+        let a = dir.abs();
+        let kz = if a.x > a.y {
+            if a.x > a.z {
+                0
+            } else {
+                2
+            }
+        } else if a.y > a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let s = Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]);
+        RayShear {
+            origin: origin.into(),
+            kx,
+            ky,
+            kz,
+            s,
+        }
+    }
+
+    /// Watertight ray/triangle test: (t, barycentrics) or None.
+    #[inline]
+    fn intersect(&self, v: &[Vec3A; 3], tmin: f32, tmax: f32) -> Option<(f32, Vec3)> {
+        let (kx, ky, kz, s) = (self.kx, self.ky, self.kz, self.s);
+        let a = v[0] - self.origin;
+        let b = v[1] - self.origin;
+        let c = v[2] - self.origin;
+        // Shear and scale the vertices into ray space.
+        let (ax, ay) = (a[kx] - s.x * a[kz], a[ky] - s.y * a[kz]);
+        let (bx, by) = (b[kx] - s.x * b[kz], b[ky] - s.y * b[kz]);
+        let (cx, cy) = (c[kx] - s.x * c[kz], c[ky] - s.y * c[kz]);
+        // Scaled barycentrics as 2D edge functions; redo in f64 when one is exactly zero.
+        let mut u = cx * by - cy * bx;
+        let mut vv = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || vv == 0.0 || w == 0.0 {
+            u = (cx as f64 * by as f64 - cy as f64 * bx as f64) as f32;
+            vv = (ax as f64 * cy as f64 - ay as f64 * cx as f64) as f32;
+            w = (bx as f64 * ay as f64 - by as f64 * ax as f64) as f32;
+        }
+        if (u < 0.0 || vv < 0.0 || w < 0.0) && (u > 0.0 || vv > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + vv + w;
+        if det == 0.0 {
+            return None;
+        }
+        let tt = u * (s.z * a[kz]) + vv * (s.z * b[kz]) + w * (s.z * c[kz]);
+        let inv = 1.0 / det;
+        let t = tt * inv;
+        if !(t > tmin && t < tmax) {
+            return None;
+        }
+        Some((t, Vec3::new(u * inv, vv * inv, w * inv)))
+    }
+}
+
+/// The scene's triangles in a compressed wide BVH, ready for closest-hit and occlusion queries.
+pub struct SceneBvh {
+    bvh: CwBvh,
+    /// Vertices in BVH slot order.
+    verts: Vec<[Vec3A; 3]>,
+    /// Scene triangle index of each slot.
+    slot_tri: Vec<u32>,
+    /// Alpha cut-out data per slot: (cutoff, material) for masked triangles.
+    mask: Vec<Option<(f32, u32)>>,
+    uvs: Vec<[Vec2; 3]>,
+}
+
+impl SceneBvh {
+    /// Builds the BVH over all scene triangles (an empty scene gives a BVH that never hits).
+    pub fn build(scene: &Scene) -> Self {
+        let tris: Vec<BvhTriangle> = scene
+            .triangles
+            .iter()
+            .map(|t| BvhTriangle {
+                v0: t.p[0].into(),
+                v1: t.p[1].into(),
+                v2: t.p[2].into(),
+            })
+            .collect();
+        if tris.is_empty() {
+            return SceneBvh {
+                bvh: CwBvh::default(),
+                verts: vec![],
+                slot_tri: vec![],
+                mask: vec![],
+                uvs: vec![],
+            };
+        }
+        let bvh = build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let slot_tri: Vec<u32> = bvh.primitive_indices.clone();
+        let verts = slot_tri
+            .iter()
+            .map(|&i| {
+                [
+                    tris[i as usize].v0,
+                    tris[i as usize].v1,
+                    tris[i as usize].v2,
+                ]
+            })
+            .collect();
+        let mask = slot_tri
+            .iter()
+            .map(|&i| {
+                let m = scene.triangles[i as usize].material;
+                match scene.materials[m as usize].alpha_mode {
+                    AlphaMode::Mask(cut) => Some((cut, m)),
+                    _ => None,
+                }
+            })
+            .collect();
+        let uvs = slot_tri
+            .iter()
+            .map(|&i| scene.triangles[i as usize].uv)
+            .collect();
+        SceneBvh {
+            bvh,
+            verts,
+            slot_tri,
+            mask,
+            uvs,
+        }
+    }
+
+    /// Number of triangles in the BVH.
+    pub fn len(&self) -> usize {
+        self.slot_tri.len()
+    }
+
+    /// True if there are no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.slot_tri.is_empty()
+    }
+
+    /// True if a masked triangle's cut-out removes the surface at barycentrics `b`.
+    #[inline]
+    fn cut_away(&self, slot: usize, b: Vec3, scene: &Scene) -> bool {
+        match self.mask[slot] {
+            None => false,
+            Some((cutoff, m)) => {
+                let uv = self.uvs[slot];
+                let p = uv[0] * b.x + uv[1] * b.y + uv[2] * b.z;
+                scene.materials[m as usize].alpha(&scene.textures, p) < cutoff
+            }
+        }
+    }
+
+    /// The closest hit along `origin + t·dir` for t in (0, tmax), or None.
+    /// `dir` need not be normalised; non-finite input never hits.
+    #[inline]
+    pub fn intersect(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        if self.is_empty() || !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO {
+            return None;
+        }
+        let shear = RayShear::new(origin, dir);
+        let ray = BvhRay::new(origin.into(), dir.into(), 0.0, tmax);
+        let mut hit = RayHit::none();
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| {
+            match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
+                Some((t, b)) if !self.cut_away(slot, b, scene) => t,
+                _ => f32::INFINITY,
+            }
+        });
+        if !found {
+            return None;
+        }
+        // Barycentrics of the winning triangle (the same arithmetic, so the same values).
+        let slot = hit.primitive_id as usize;
+        let bary = shear
+            .intersect(&self.verts[slot], 0.0, f32::INFINITY)
+            .map(|(_, b)| b)
+            .unwrap_or(Vec3::splat(1.0 / 3.0));
+        Some(Hit {
+            triangle: self.slot_tri[slot],
+            t: hit.t,
+            bary,
+        })
+    }
+
+    /// True if anything blocks `origin + t·dir` for t in (0, tmax).
+    #[inline]
+    pub fn occluded(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        if self.is_empty() || !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO {
+            return false;
+        }
+        let shear = RayShear::new(origin, dir);
+        let ray = BvhRay::new(origin.into(), dir.into(), 0.0, tmax);
+        !self.bvh.ray_traverse_miss(ray, |r, slot| {
+            match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
+                Some((t, b)) if !self.cut_away(slot, b, scene) => t,
+                _ => f32::INFINITY,
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec4;
+    use rtd_scene::Triangle;
+
+    fn quad_scene() -> Scene {
+        // Two triangles sharing the diagonal of the unit square in the z=0 plane.
+        let mut s = Scene::default();
+        let tri = |p: [Vec3; 3]| Triangle {
+            p,
+            n: [Vec3::Z; 3],
+            uv: [Vec2::ZERO; 3],
+            tangent: [Vec4::ZERO; 3],
+            material: 0,
+        };
+        s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]));
+        s.push_triangle(tri([Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]));
+        s.materials.push(Default::default());
+        s
+    }
+
+    #[test]
+    fn shared_edge_is_watertight() {
+        let s = quad_scene();
+        let bvh = SceneBvh::build(&s);
+        // Rays exactly through the shared interior diagonal must hit. (The two ends lie on the
+        // mesh's outer boundary and its bounding box face, where a hit is not required.)
+        for i in 1..100 {
+            let x = i as f32 / 100.0;
+            let h = bvh.intersect(
+                &s,
+                Vec3::new(x, x, 1.0),
+                Vec3::new(0.0, 0.0, -1.0),
+                f32::INFINITY,
+            );
+            assert!(h.is_some(), "leak at {x}");
+            let h = h.unwrap();
+            assert!((h.t - 1.0).abs() < 1e-6);
+            assert!((h.bary.element_sum() - 1.0).abs() < 1e-5);
+        }
+        assert!(bvh
+            .intersect(&s, Vec3::new(1.5, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY)
+            .is_none());
+    }
+
+    #[test]
+    fn barycentrics_and_occlusion() {
+        let s = quad_scene();
+        let bvh = SceneBvh::build(&s);
+        let h = bvh
+            .intersect(
+                &s,
+                Vec3::new(0.75, 0.25, 2.0),
+                Vec3::NEG_Z * 2.0,
+                f32::INFINITY,
+            )
+            .unwrap();
+        assert_eq!(h.triangle, 0);
+        assert!((h.t - 1.0).abs() < 1e-6);
+        let p = s.triangles[0].p[0] * h.bary.x
+            + s.triangles[0].p[1] * h.bary.y
+            + s.triangles[0].p[2] * h.bary.z;
+        assert!((p - Vec3::new(0.75, 0.25, 0.0)).length() < 1e-6);
+        assert!(bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::NEG_Z, 2.0));
+        assert!(!bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::NEG_Z, 0.5));
+        assert!(!bvh.occluded(
+            &s,
+            Vec3::new(0.5, 0.2, 1.0),
+            Vec3::new(f32::NAN, 0.0, 0.0),
+            2.0
+        ));
+    }
+}

@@ -1,0 +1,200 @@
+//! Unidirectional path tracing with next-event estimation and multiple importance sampling.
+//!
+//! At each non-delta vertex one light is chosen in proportion to power and sampled (NEE), and
+//! the BSDF is sampled to continue the path; both estimates of emitted light are combined by
+//! the power heuristic. Delta lights and delta lobes take no MIS. Russian roulette starts after
+//! three bounces with survival probability min(max β, 0.95).
+
+use glam::{Vec2, Vec3};
+use rtd_scene::{AlphaMode, Scene};
+
+use crate::bsdf::{Bsdf, BsdfParams};
+use crate::bvh::SceneBvh;
+use crate::lights::LightSet;
+use crate::sampler::Sampler;
+use crate::sampling::{power_heuristic, Frame};
+use crate::surface::Surface;
+
+/// First-hit auxiliary values of one sample.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Aov {
+    /// Base colour at the first hit (glass and mirrors: their own reflectance colour).
+    pub albedo: Vec3,
+    /// World-space shading normal at the first hit.
+    pub normal: Vec3,
+    /// Camera-space distance to the first hit.
+    pub depth: f32,
+}
+
+/// The result of tracing one camera path.
+#[derive(Debug, Clone, Copy)]
+pub struct PathResult {
+    /// Radiance carried to the camera.
+    pub radiance: Vec3,
+    /// First-hit AOVs (zero if the camera ray escaped).
+    pub aov: Aov,
+    /// Rays traced (closest-hit and shadow).
+    pub rays: u32,
+}
+
+/// Immutable inputs of the integrator.
+pub struct Integrator<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its BVH.
+    pub bvh: &'a SceneBvh,
+    /// Its lights.
+    pub lights: &'a LightSet,
+    /// Maximum number of bounces (1 = direct lighting only).
+    pub max_depth: u32,
+}
+
+impl Integrator<'_> {
+    /// Traces one path from `origin` along unit `dir`.
+    pub fn trace(&self, origin: Vec3, dir: Vec3, sampler: &mut Sampler) -> PathResult {
+        let (scene, bvh, lights) = (self.scene, self.bvh, self.lights);
+        let mut radiance = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let mut aov = Aov::default();
+        let mut rays = 0u32;
+        let (mut o, mut d) = (origin, dir);
+        // State of the previous vertex, for MIS on emitters hit by BSDF sampling.
+        let mut specular = true;
+        let mut prev_pdf = 0.0f32;
+        let mut prev_p = origin;
+        let mut depth = 0u32;
+        loop {
+            rays += 1;
+            let Some(hit) = bvh.intersect(scene, o, d, f32::INFINITY) else {
+                let le = scene.environment.radiance(d);
+                if le != Vec3::ZERO {
+                    let w = if specular {
+                        1.0
+                    } else {
+                        power_heuristic(prev_pdf, lights.environment_pdf(&scene.environment, d))
+                    };
+                    radiance += beta * le * w;
+                }
+                break;
+            };
+            let s = Surface::new(scene, &hit);
+            let wo = -d;
+            let material =
+                &scene.materials[scene.triangles[hit.triangle as usize].material as usize];
+            if depth == 0 {
+                aov = Aov {
+                    albedo: s.params.base_color,
+                    normal: s.ns,
+                    depth: (s.p - origin).length(),
+                };
+            }
+            // Emission, front side only unless double-sided.
+            if s.params.emission != Vec3::ZERO && (material.double_sided || wo.dot(s.ng) > 0.0) {
+                let w = if specular {
+                    1.0
+                } else {
+                    // Area-to-solid-angle pdf of having sampled this point by light sampling.
+                    let area = scene.triangles[hit.triangle as usize].area();
+                    let dist2 = (s.p - prev_p).length_squared();
+                    let pdf_light =
+                        lights.triangle_pmf(hit.triangle) * dist2 / (wo.dot(s.ng).abs() * area);
+                    power_heuristic(prev_pdf, pdf_light)
+                };
+                radiance += beta * s.params.emission * w;
+            }
+            if depth >= self.max_depth {
+                break;
+            }
+            let frame = Frame::from_normal(s.ns);
+            let wo_l = frame.to_local(wo);
+            let params = BsdfParams {
+                base_color: s.params.base_color,
+                metallic: s.params.metallic,
+                roughness: s.params.roughness,
+                transmission: s.params.transmission,
+                ior: s.params.ior,
+                specular: s.params.specular,
+                specular_color: s.params.specular_color,
+                opacity: if material.alpha_mode == AlphaMode::Blend {
+                    s.params.alpha
+                } else {
+                    1.0
+                },
+            };
+            let bsdf = Bsdf::new(params, wo_l);
+
+            // Next-event estimation.
+            let u_select = sampler.get_1d();
+            let u_light = sampler.get_2d();
+            if bsdf.has_non_delta() {
+                if let Some(ls) = lights.sample(scene, s.p, u_select, u_light) {
+                    let wi_l = frame.to_local(ls.wi);
+                    if ls.pdf > 0.0
+                        && ls.li != Vec3::ZERO
+                        && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l)
+                    {
+                        let f = bsdf.f(wo_l, wi_l) * wi_l.z.abs();
+                        if f != Vec3::ZERO {
+                            rays += 1;
+                            let from = s.spawn_origin(ls.wi);
+                            let blocked = match ls.point {
+                                // Stop the shadow ray just short of the light point.
+                                Some(q) => bvh.occluded(scene, from, q - from, 1.0 - 1e-4),
+                                None => bvh.occluded(scene, from, ls.wi, f32::INFINITY),
+                            };
+                            if !blocked {
+                                let w = if ls.delta {
+                                    1.0
+                                } else {
+                                    power_heuristic(ls.pdf, bsdf.pdf(wo_l, wi_l))
+                                };
+                                radiance += beta * f * ls.li * (w / ls.pdf);
+                            }
+                        }
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BSDF.
+            let u_lobe = sampler.get_1d();
+            let u_dir: Vec2 = sampler.get_2d();
+            let u_rr = sampler.get_1d();
+            let Some(bs) = bsdf.sample(wo_l, u_lobe, u_dir) else {
+                break;
+            };
+            let wi = frame.to_world(bs.wi).normalize_or_zero();
+            if wi == Vec3::ZERO || !same_side_agrees(wo, wi, s.ng, wo_l, bs.wi) {
+                break;
+            }
+            beta *= bs.weight;
+            specular = bs.delta;
+            prev_pdf = bs.pdf;
+            prev_p = s.p;
+            o = s.spawn_origin(wi);
+            d = wi;
+            depth += 1;
+            if depth > 3 {
+                let q = beta.max_element().min(0.95);
+                if !(u_rr < q) {
+                    break;
+                }
+                beta /= q;
+            }
+            if beta == Vec3::ZERO || !beta.is_finite() {
+                break;
+            }
+        }
+        PathResult {
+            radiance,
+            aov,
+            rays,
+        }
+    }
+}
+
+/// Rejects directions whose reflection/transmission status differs between the shading frame
+/// and the true surface (interpolated normals would otherwise leak light through geometry).
+#[inline]
+fn same_side_agrees(wo: Vec3, wi: Vec3, ng: Vec3, wo_l: Vec3, wi_l: Vec3) -> bool {
+    ((wo.dot(ng) * wi.dot(ng)) > 0.0) == ((wo_l.z * wi_l.z) > 0.0)
+}

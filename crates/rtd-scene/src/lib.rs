@@ -1,0 +1,45 @@
+//! Scene import for rtd.
+//!
+//! glTF 2.0 (`.gltf`, `.glb`) and OBJ/MTL files are flattened into a [`Scene`]: world-space
+//! triangles with per-vertex shading attributes, glTF metallic-roughness [`Material`]s,
+//! linear-float [`Texture`]s, [`Camera`]s, punctual [`Light`]s and an [`Environment`].
+//! Bad input gives a [`SceneError`] naming the file and the problem; recoverable problems
+//! (skipped degenerate triangles, a missing camera) become [`Scene::warnings`].
+
+mod camera;
+mod environment;
+mod error;
+mod gltf_import;
+mod light;
+mod material;
+mod obj_import;
+mod scene;
+mod texture;
+
+pub use camera::{Camera, Projection};
+pub use environment::Environment;
+pub use error::SceneError;
+pub use gltf_import::{load_gltf, SUPPORTED_GLTF_EXTENSIONS};
+pub use light::Light;
+pub use material::{AlphaMode, Material, SurfaceParams, TextureRef, UvTransform};
+pub use obj_import::load_obj;
+pub use scene::{Aabb, Scene, Triangle};
+pub use texture::{Texture, Wrap};
+
+use std::path::Path;
+
+/// Loads a scene, choosing the importer by extension (`.gltf`, `.glb`, `.obj`).
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("gltf") | Some("glb") => load_gltf(path),
+        Some("obj") => load_obj(path),
+        _ => Err(SceneError::new(
+            path,
+            "unknown scene format (use .gltf, .glb or .obj)",
+        )),
+    }
+}

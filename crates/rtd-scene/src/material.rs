@@ -1,0 +1,261 @@
+use glam::{Mat3, Vec2, Vec3, Vec4, Vec4Swizzles};
+
+use crate::Texture;
+
+/// `KHR_texture_transform`: uv' = T(offset) · R(rotation) · S(scale) · uv.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UvTransform {
+    /// Translation added after rotation and scale.
+    pub offset: Vec2,
+    /// Rotation in radians (counter-clockwise in UV space, as the extension defines it).
+    pub rotation: f32,
+    /// Per-axis scale applied first.
+    pub scale: Vec2,
+}
+
+impl UvTransform {
+    /// The transform as a 3×3 matrix acting on (u, v, 1).
+    pub fn matrix(&self) -> Mat3 {
+        let (s, c) = self.rotation.sin_cos();
+        let t = Mat3::from_cols(Vec3::X, Vec3::Y, self.offset.extend(1.0));
+        // The extension's rotation matrix, as written in its specification (column-major).
+        let r = Mat3::from_cols(Vec3::new(c, -s, 0.0), Vec3::new(s, c, 0.0), Vec3::Z);
+        let sc = Mat3::from_diagonal(self.scale.extend(1.0));
+        t * r * sc
+    }
+}
+
+/// A reference from a material slot to a texture.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TextureRef {
+    /// Index into [`crate::Scene::textures`].
+    pub texture: u32,
+    /// Optional UV transform (`KHR_texture_transform`), stored as a matrix.
+    pub transform: Option<Mat3>,
+}
+
+impl TextureRef {
+    /// Samples the texture at `uv` after the UV transform.
+    #[inline]
+    pub fn sample(&self, textures: &[Texture], uv: Vec2) -> Vec4 {
+        let uv = match self.transform {
+            Some(m) => (m * uv.extend(1.0)).truncate(),
+            None => uv,
+        };
+        textures[self.texture as usize].sample(uv)
+    }
+}
+
+/// How a material's alpha is used.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum AlphaMode {
+    /// Alpha is ignored.
+    #[default]
+    Opaque,
+    /// Cut-out: the surface is absent where alpha < cutoff (for camera and shadow rays alike).
+    Mask(f32),
+    /// Partial coverage: rays pass straight through with probability 1 − alpha.
+    Blend,
+}
+
+/// A glTF metallic-roughness material with the extensions rtd supports.
+/// Factors are stored already multiplied together (e.g. emissive × emissive strength).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    /// Name from the file, for messages.
+    pub name: String,
+    /// Linear base colour and alpha factor.
+    pub base_color: Vec4,
+    /// Base colour texture (linearised from sRGB at load).
+    pub base_color_texture: Option<TextureRef>,
+    /// Metallic factor in [0,1].
+    pub metallic: f32,
+    /// Perceptual roughness factor in [0,1] (GGX alpha = roughness²).
+    pub roughness: f32,
+    /// Metallic (B) and roughness (G) texture.
+    pub metallic_roughness_texture: Option<TextureRef>,
+    /// Tangent-space normal map.
+    pub normal_texture: Option<TextureRef>,
+    /// Scale applied to the normal map's X and Y.
+    pub normal_scale: f32,
+    /// Emitted radiance: emissive factor × `KHR_materials_emissive_strength`.
+    pub emissive: Vec3,
+    /// Emissive texture (linearised from sRGB at load).
+    pub emissive_texture: Option<TextureRef>,
+    /// `KHR_materials_transmission` factor in [0,1].
+    pub transmission: f32,
+    /// Transmission texture (R channel).
+    pub transmission_texture: Option<TextureRef>,
+    /// Index of refraction (`KHR_materials_ior`, default 1.5).
+    pub ior: f32,
+    /// `KHR_materials_specular` specularFactor (default 1).
+    pub specular: f32,
+    /// Specular texture (A channel).
+    pub specular_texture: Option<TextureRef>,
+    /// `KHR_materials_specular` specularColorFactor (default white).
+    pub specular_color: Vec3,
+    /// Alpha handling.
+    pub alpha_mode: AlphaMode,
+    /// Whether back faces are rendered as front faces (and emit).
+    pub double_sided: bool,
+}
+
+impl Default for Material {
+    /// The glTF default material: white, fully rough, dielectric.
+    fn default() -> Self {
+        Material {
+            name: "default".into(),
+            base_color: Vec4::ONE,
+            base_color_texture: None,
+            metallic: 1.0,
+            roughness: 1.0,
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+            emissive: Vec3::ZERO,
+            emissive_texture: None,
+            transmission: 0.0,
+            transmission_texture: None,
+            ior: 1.5,
+            specular: 1.0,
+            specular_texture: None,
+            specular_color: Vec3::ONE,
+            alpha_mode: AlphaMode::Opaque,
+            double_sided: false,
+        }
+    }
+}
+
+/// A material evaluated at one surface point: all factors × textures, clamped to valid ranges.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceParams {
+    /// Linear base colour.
+    pub base_color: Vec3,
+    /// Coverage in [0,1].
+    pub alpha: f32,
+    /// Metallic in [0,1].
+    pub metallic: f32,
+    /// Perceptual roughness in [0,1].
+    pub roughness: f32,
+    /// Emitted radiance.
+    pub emission: Vec3,
+    /// Transmission in [0,1].
+    pub transmission: f32,
+    /// Index of refraction, at least 1.
+    pub ior: f32,
+    /// Specular weight in [0,1].
+    pub specular: f32,
+    /// Specular tint (F0 multiplier).
+    pub specular_color: Vec3,
+    /// Tangent-space normal from the normal map (scaled, unnormalised), if any.
+    pub tangent_normal: Option<Vec3>,
+}
+
+impl Material {
+    /// True if the material emits light anywhere.
+    pub fn is_emissive(&self) -> bool {
+        self.emissive.max_element() > 0.0
+    }
+
+    /// Coverage alpha at `uv` (base colour alpha × texture alpha).
+    #[inline]
+    pub fn alpha(&self, textures: &[Texture], uv: Vec2) -> f32 {
+        let mut a = self.base_color.w;
+        if let Some(t) = &self.base_color_texture {
+            a *= t.sample(textures, uv).w;
+        }
+        a
+    }
+
+    /// Evaluates every factor and texture at `uv`.
+    pub fn evaluate(&self, textures: &[Texture], uv: Vec2) -> SurfaceParams {
+        let mut base = self.base_color;
+        if let Some(t) = &self.base_color_texture {
+            base *= t.sample(textures, uv);
+        }
+        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+        if let Some(t) = &self.metallic_roughness_texture {
+            let s = t.sample(textures, uv);
+            roughness *= s.y;
+            metallic *= s.z;
+        }
+        let mut emission = self.emissive;
+        if let Some(t) = &self.emissive_texture {
+            emission *= t.sample(textures, uv).xyz();
+        }
+        let mut transmission = self.transmission;
+        if let Some(t) = &self.transmission_texture {
+            transmission *= t.sample(textures, uv).x;
+        }
+        let mut specular = self.specular;
+        if let Some(t) = &self.specular_texture {
+            specular *= t.sample(textures, uv).w;
+        }
+        let tangent_normal = self.normal_texture.as_ref().map(|t| {
+            let s = t.sample(textures, uv).xyz() * 2.0 - Vec3::ONE;
+            Vec3::new(s.x * self.normal_scale, s.y * self.normal_scale, s.z)
+        });
+        let sat = |x: f32| {
+            if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        };
+        let pos = |v: Vec3| v.map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 });
+        SurfaceParams {
+            base_color: pos(base.xyz()).min(Vec3::ONE),
+            alpha: sat(base.w),
+            metallic: sat(metallic),
+            roughness: sat(roughness),
+            emission: pos(emission),
+            transmission: sat(transmission),
+            ior: if self.ior.is_finite() {
+                self.ior.max(1.0)
+            } else {
+                1.5
+            },
+            specular: sat(specular),
+            specular_color: pos(self.specular_color),
+            tangent_normal,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_transform_matches_spec_example() {
+        // Rotation by 90°: the spec's matrix maps (1,0) to (cos, -sin) = (0,-1).
+        let t = UvTransform {
+            offset: Vec2::new(0.5, 0.0),
+            rotation: std::f32::consts::FRAC_PI_2,
+            scale: Vec2::splat(2.0),
+        };
+        let p = t.matrix() * Vec3::new(1.0, 0.0, 1.0);
+        assert!((p - Vec3::new(0.5, -2.0, 1.0)).length() < 1e-6, "{p}");
+    }
+
+    #[test]
+    fn evaluate_multiplies_factors_and_clamps() {
+        let textures = vec![Texture::constant(Vec4::new(1.0, 0.5, 0.25, 1.0))];
+        let m = Material {
+            roughness: 0.8,
+            metallic: 1.0,
+            metallic_roughness_texture: Some(TextureRef {
+                texture: 0,
+                transform: None,
+            }),
+            base_color: Vec4::new(2.0, 0.5, f32::NAN, 1.0),
+            ior: 0.5,
+            ..Material::default()
+        };
+        let s = m.evaluate(&textures, Vec2::ZERO);
+        assert_eq!(s.roughness, 0.4);
+        assert_eq!(s.metallic, 0.25);
+        assert_eq!(s.base_color, Vec3::new(1.0, 0.5, 0.0));
+        assert_eq!(s.ior, 1.0);
+    }
+}

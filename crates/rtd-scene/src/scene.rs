@@ -1,0 +1,290 @@
+use glam::{Vec2, Vec3, Vec4};
+
+use crate::{Camera, Environment, Light, Material, Texture};
+
+/// An axis-aligned bounding box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// The empty box (min = +∞, max = −∞).
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::INFINITY,
+        max: Vec3::NEG_INFINITY,
+    };
+
+    /// Grows the box to contain `p`.
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+    /// Centre point.
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+    /// max − min.
+    pub fn diagonal(&self) -> Vec3 {
+        self.max - self.min
+    }
+    /// True if nothing was added.
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x
+    }
+}
+
+/// One world-space triangle with per-vertex shading attributes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Triangle {
+    /// Vertex positions; counter-clockwise winding seen from the front.
+    pub p: [Vec3; 3],
+    /// Unit shading normals per vertex.
+    pub n: [Vec3; 3],
+    /// Texture coordinates (set 0) per vertex.
+    pub uv: [Vec2; 3],
+    /// Tangents with handedness in w; all zero when the file gave none.
+    pub tangent: [Vec4; 3],
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+impl Triangle {
+    /// The unnormalised geometric normal (e1 × e2), whose length is twice the area.
+    #[inline]
+    pub fn cross(&self) -> Vec3 {
+        (self.p[1] - self.p[0]).cross(self.p[2] - self.p[0])
+    }
+    /// Unit geometric normal on the front side. The front is where the vertex normals point
+    /// (normals generated from the winding when the file had none), so files whose winding
+    /// disagrees with their normals still shade, emit and refract on the intended side.
+    #[inline]
+    pub fn front_normal(&self) -> Vec3 {
+        let n = self.cross().normalize_or_zero();
+        if (self.n[0] + self.n[1] + self.n[2]).dot(n) < 0.0 {
+            -n
+        } else {
+            n
+        }
+    }
+    /// Area.
+    pub fn area(&self) -> f32 {
+        self.cross().length() * 0.5
+    }
+}
+
+/// A loaded scene, flattened to world-space triangles.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// All renderable triangles.
+    pub triangles: Vec<Triangle>,
+    /// Materials referenced by triangles; never empty once loaded.
+    pub materials: Vec<Material>,
+    /// Decoded textures referenced by materials.
+    pub textures: Vec<Texture>,
+    /// Cameras in file order.
+    pub cameras: Vec<Camera>,
+    /// Punctual lights.
+    pub lights: Vec<Light>,
+    /// Environment lighting (black unless set by the caller).
+    pub environment: Environment,
+    /// Triangles dropped at load because a position was NaN/Inf.
+    pub skipped_nonfinite: usize,
+    /// Triangles dropped at load because they had zero area.
+    pub skipped_degenerate: usize,
+    /// Non-fatal problems found while loading, one line each.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Adds a triangle after validation. Triangles with non-finite positions or zero area are
+    /// counted and dropped; missing or broken normals become the flat normal.
+    pub fn push_triangle(&mut self, mut t: Triangle) -> bool {
+        if !t.p.iter().all(|p| p.is_finite()) {
+            self.skipped_nonfinite += 1;
+            return false;
+        }
+        let c = t.cross();
+        let len2 = c.length_squared();
+        if !(len2 > 0.0 && len2.is_finite()) {
+            self.skipped_degenerate += 1;
+            return false;
+        }
+        let flat = c / len2.sqrt();
+        for n in &mut t.n {
+            let l = n.length();
+            *n = if l.is_finite() && l > 1e-12 {
+                *n / l
+            } else {
+                flat
+            };
+        }
+        for uv in &mut t.uv {
+            if !uv.is_finite() {
+                *uv = Vec2::ZERO;
+            }
+        }
+        if !t.tangent.iter().all(|v| v.is_finite()) {
+            t.tangent = [Vec4::ZERO; 3];
+        }
+        self.triangles.push(t);
+        true
+    }
+
+    /// Records the skipped-triangle counts as warnings; importers call this once at the end.
+    pub(crate) fn finish_load(&mut self) {
+        if self.skipped_nonfinite > 0 {
+            self.warnings.push(format!(
+                "skipped {} triangles with NaN/Inf vertices",
+                self.skipped_nonfinite
+            ));
+        }
+        if self.skipped_degenerate > 0 {
+            self.warnings.push(format!(
+                "skipped {} degenerate (zero-area) triangles",
+                self.skipped_degenerate
+            ));
+        }
+        if self.materials.is_empty() {
+            self.materials.push(Material::default());
+        }
+    }
+
+    /// Bounds of all triangles.
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for t in &self.triangles {
+            for p in t.p {
+                b.grow(p);
+            }
+        }
+        b
+    }
+
+    /// Number of triangles whose material emits.
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.triangles
+            .iter()
+            .filter(|t| self.materials[t.material as usize].is_emissive())
+            .count()
+    }
+
+    /// The camera chosen by `--camera NAME|INDEX`, the first camera, or an automatic one that
+    /// frames the scene (with a warning). Errors name the cameras that exist.
+    pub fn select_camera(&self, choice: Option<&str>) -> Result<(Camera, Option<String>), String> {
+        match choice {
+            Some(c) => {
+                if let Ok(i) = c.parse::<usize>() {
+                    return self
+                        .cameras
+                        .get(i)
+                        .cloned()
+                        .map(|c| (c, None))
+                        .ok_or_else(|| {
+                            format!(
+                                "camera index {i} out of range (scene has {} cameras)",
+                                self.cameras.len()
+                            )
+                        });
+                }
+                self.cameras
+                    .iter()
+                    .find(|cam| cam.name == c)
+                    .cloned()
+                    .map(|c| (c, None))
+                    .ok_or_else(|| {
+                        let names: Vec<&str> =
+                            self.cameras.iter().map(|c| c.name.as_str()).collect();
+                        format!(
+                            "no camera named '{c}' (cameras: {})",
+                            if names.is_empty() {
+                                "none".into()
+                            } else {
+                                names.join(", ")
+                            }
+                        )
+                    })
+            }
+            None => match self.cameras.first() {
+                Some(c) => Ok((c.clone(), None)),
+                None => Ok((
+                    Camera::framing(&self.bounds()),
+                    Some(
+                        "scene has no camera; using an automatic camera framing its bounds".into(),
+                    ),
+                )),
+            },
+        }
+    }
+
+    /// A copy with every position, camera and light moved by `p' = p·scale + offset`.
+    /// Radiometric quantities are unchanged, so the image must be the same: a test of scale
+    /// robustness. Punctual light intensities are scaled by scale² to keep irradiance fixed.
+    pub fn transformed(&self, scale: f32, offset: Vec3) -> Scene {
+        let mut s = self.clone();
+        for t in &mut s.triangles {
+            for p in &mut t.p {
+                *p = *p * scale + offset;
+            }
+        }
+        s.cameras = s.cameras.iter().map(|c| c.scaled(scale, offset)).collect();
+        for l in &mut s.lights {
+            match l {
+                Light::Point {
+                    position,
+                    intensity,
+                } => {
+                    *position = *position * scale + offset;
+                    *intensity *= scale * scale;
+                }
+                Light::Spot {
+                    position,
+                    intensity,
+                    ..
+                } => {
+                    *position = *position * scale + offset;
+                    *intensity *= scale * scale;
+                }
+                Light::Directional { .. } => {}
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(p: [Vec3; 3]) -> Triangle {
+        Triangle {
+            p,
+            n: [Vec3::ZERO; 3],
+            uv: [Vec2::ZERO; 3],
+            tangent: [Vec4::ZERO; 3],
+            material: 0,
+        }
+    }
+
+    #[test]
+    fn bad_triangles_are_counted_and_dropped() {
+        let mut s = Scene::default();
+        assert!(s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::Y])));
+        assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::X * 2.0])));
+        assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::splat(f32::NAN), Vec3::Y])));
+        s.finish_load();
+        assert_eq!(
+            (s.triangles.len(), s.skipped_degenerate, s.skipped_nonfinite),
+            (1, 1, 1)
+        );
+        assert_eq!(
+            s.triangles[0].n[0],
+            Vec3::Z,
+            "missing normals become flat normals"
+        );
+        assert_eq!(s.warnings.len(), 2);
+    }
+}

@@ -1,0 +1,311 @@
+//! `rtd render`: load, build, render progressively, write the image and the report.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use serde::Serialize;
+
+use rtd_image::{ImageFormat, Tonemap};
+use rtd_render::{Film, PathTracer, RenderScene, RenderSettings, RenderStats};
+use rtd_scene::{Camera, Environment, Scene};
+
+use crate::args::{RenderArgs, TonemapArg};
+use crate::progress::{bar, interrupt_flag, BarObserver};
+
+/// What `rtd render --report` writes.
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderReport {
+    /// Scene file.
+    pub scene: String,
+    /// Output file.
+    pub output: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel reached.
+    pub spp: u32,
+    /// Seed.
+    pub seed: u64,
+    /// Maximum depth.
+    pub max_depth: u32,
+    /// Camera used.
+    pub camera: String,
+    /// Scene loading seconds.
+    pub load_s: f64,
+    /// BVH build seconds.
+    pub bvh_s: f64,
+    /// Rendering seconds.
+    pub render_s: f64,
+    /// Camera paths per second.
+    pub paths_per_s: f64,
+    /// Rays (closest-hit and shadow) per second.
+    pub rays_per_s: f64,
+    /// Mean rays per path.
+    pub rays_per_path: f64,
+    /// Samples dropped as NaN/Inf (counted as black).
+    pub nonfinite_samples: u64,
+    /// Triangles rendered.
+    pub triangles: usize,
+    /// Emissive triangles.
+    pub emissive_triangles: usize,
+    /// Lights in the light set (emissive triangles, punctual lights, environment).
+    pub lights: usize,
+    /// Triangles dropped at load (NaN or degenerate).
+    pub skipped_triangles: usize,
+    /// Load warnings.
+    pub warnings: Vec<String>,
+    /// True if Ctrl-C stopped the render early (the image holds the finished passes).
+    pub interrupted: bool,
+}
+
+/// Fails early, before any rendering, if `path` cannot be written as an image.
+pub fn check_output(path: &Path) -> anyhow::Result<ImageFormat> {
+    let format = ImageFormat::from_path(path)?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{}: output directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    if path.is_dir() {
+        bail!("{}: is a directory", path.display());
+    }
+    tempfile::Builder::new()
+        .prefix(".rtd-check-")
+        .tempfile_in(dir)
+        .with_context(|| format!("{}: output directory is not writable", path.display()))?;
+    Ok(format)
+}
+
+/// Loads a scene and applies the environment argument.
+pub fn load_scene(path: &Path, env: Option<&str>) -> anyhow::Result<Scene> {
+    if !path.exists() {
+        bail!("{}: no such file", path.display());
+    }
+    let mut scene = rtd_scene::load_scene(path)?;
+    if let Some(env) = env {
+        scene.environment = Environment::parse(env)?;
+    }
+    Ok(scene)
+}
+
+/// Chooses the camera from `--look-from/--look-at/--fov` or `--camera`, warning if automatic.
+pub fn choose_camera(scene: &Scene, args: &RenderArgs) -> anyhow::Result<(Camera, Option<String>)> {
+    if let (Some(from), Some(at)) = (args.look_from, args.look_at) {
+        if from == at {
+            bail!("--look-from and --look-at are the same point");
+        }
+        return Ok((Camera::look_at(from, at, args.fov), None));
+    }
+    scene
+        .select_camera(args.camera.as_deref())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))
+}
+
+/// Writes the film as EXR (all layers) or as a tonemapped 8-bit image.
+pub fn write_film(
+    path: &Path,
+    film: &Film,
+    exposure: f32,
+    tonemap: TonemapArg,
+) -> anyhow::Result<()> {
+    match ImageFormat::from_path(path)? {
+        ImageFormat::Exr => rtd_image::write_exr(path, &film.layers())?,
+        _ => {
+            let t = match tonemap {
+                TonemapArg::Clamp => Tonemap::Clamp,
+                TonemapArg::Aces => Tonemap::Aces,
+            };
+            rtd_image::write_ldr(path, &film.beauty(), exposure, t)?
+        }
+    }
+    Ok(())
+}
+
+/// Runs `rtd render` and returns its report.
+pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
+    check_output(&args.output)?;
+    if let Some(r) = &args.report {
+        check_report_path(r)?;
+    }
+    let t_load = Instant::now();
+    let scene = load_scene(&args.scene, args.env.as_deref())?;
+    let load_s = t_load.elapsed().as_secs_f64();
+    for w in &scene.warnings {
+        eprintln!("rtd: warning: {}: {w}", args.scene.display());
+    }
+    let (camera, cam_warning) = choose_camera(&scene, args)?;
+    if let Some(w) = cam_warning {
+        eprintln!("rtd: warning: {}: {w}", args.scene.display());
+    }
+    if scene.triangles.is_empty() {
+        eprintln!(
+            "rtd: warning: {}: scene has no triangles; the image shows only the environment",
+            args.scene.display()
+        );
+    }
+    let prepared = RenderScene::new(scene);
+    if prepared.lights.is_empty() {
+        eprintln!(
+            "rtd: warning: {}: scene has no lights and no --env; the image will be black",
+            args.scene.display()
+        );
+    }
+    let settings = RenderSettings::new(args.width, args.height)
+        .seed(args.seed)
+        .max_depth(args.max_depth)
+        .clamp(args.clamp)
+        .threads(args.threads.map(|t| t as usize));
+    let tracer = PathTracer::new(&prepared, camera.clone(), settings)?;
+    let mut film = tracer.film();
+    let interrupted = interrupt_flag();
+    let stats = match args.time {
+        Some(secs) => {
+            let observer = TimedObserver::new(secs, args.quiet, interrupted.clone());
+            let s = tracer.render_for(&mut film, Duration::from_secs_f64(secs), &observer)?;
+            observer.bar.finish_and_clear();
+            s
+        }
+        None => {
+            let spp = args.spp.unwrap_or(16);
+            let observer = BarObserver {
+                bar: bar(spp as u64 * args.height as u64, "render", args.quiet),
+                interrupted: interrupted.clone(),
+            };
+            let s = tracer.render_observed(&mut film, spp, &observer)?;
+            observer.bar.finish_and_clear();
+            s
+        }
+    };
+    let was_interrupted = interrupted.load(std::sync::atomic::Ordering::SeqCst);
+    if film.spp == 0 {
+        bail!("interrupted before the first pass finished; nothing written");
+    }
+    write_film(&args.output, &film, args.exposure, args.tonemap)?;
+    let report = make_report(
+        args,
+        &prepared,
+        &camera,
+        load_s,
+        &stats,
+        &film,
+        was_interrupted,
+    );
+    println!(
+        "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}",
+        report.spp,
+        args.width,
+        args.height,
+        report.render_s,
+        report.paths_per_s / 1e6,
+        report.rays_per_s / 1e6,
+        report.rays_per_path,
+        report.nonfinite_samples,
+        if was_interrupted { " (interrupted: image holds the finished passes)" } else { "" }
+    );
+    if let Some(path) = &args.report {
+        write_json(path, &report)?;
+    }
+    Ok(report)
+}
+
+fn check_report_path(path: &Path) -> anyhow::Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{}: report directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// Writes any serialisable report as pretty JSON, atomically.
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    rtd_image::write_atomic(path, |w| {
+        std::io::Write::write_all(w, text.as_bytes()).map_err(|e| rtd_image::ImageError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })
+    })?;
+    Ok(())
+}
+
+fn make_report(
+    args: &RenderArgs,
+    prepared: &RenderScene,
+    camera: &Camera,
+    load_s: f64,
+    stats: &RenderStats,
+    film: &Film,
+    interrupted: bool,
+) -> RenderReport {
+    let scene = &prepared.scene;
+    let secs = stats.seconds.max(1e-9);
+    RenderReport {
+        scene: args.scene.display().to_string(),
+        output: args.output.display().to_string(),
+        width: args.width,
+        height: args.height,
+        spp: film.spp,
+        seed: args.seed,
+        max_depth: args.max_depth,
+        camera: camera.name.clone(),
+        load_s,
+        bvh_s: prepared.bvh_seconds,
+        render_s: stats.seconds,
+        paths_per_s: stats.paths as f64 / secs,
+        rays_per_s: stats.rays as f64 / secs,
+        rays_per_path: stats.rays as f64 / stats.paths.max(1) as f64,
+        nonfinite_samples: film.nonfinite_samples,
+        triangles: scene.triangles.len(),
+        emissive_triangles: scene.emissive_triangle_count(),
+        lights: prepared.lights.len(),
+        skipped_triangles: scene.skipped_degenerate + scene.skipped_nonfinite,
+        warnings: scene.warnings.clone(),
+        interrupted,
+    }
+}
+
+/// Progress for `--time`: the bar tracks elapsed time against the budget.
+struct TimedObserver {
+    bar: indicatif::ProgressBar,
+    start: Instant,
+    interrupted: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl TimedObserver {
+    fn new(
+        secs: f64,
+        quiet: bool,
+        interrupted: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    ) -> Self {
+        TimedObserver {
+            bar: bar((secs * 1000.0) as u64, "render", quiet),
+            start: Instant::now(),
+            interrupted,
+        }
+    }
+}
+
+impl rtd_render::RenderObserver for TimedObserver {
+    fn rows_done(&self, _rows: u64) {
+        self.bar
+            .set_position(self.start.elapsed().as_millis() as u64);
+    }
+    fn cancelled(&self) -> bool {
+        self.interrupted.load(std::sync::atomic::Ordering::SeqCst)
+    }
+}
