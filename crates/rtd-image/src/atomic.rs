@@ -24,8 +24,7 @@ where
         write(&mut buffered)?;
         buffered.flush().map_err(|e| ImageError::io(path, e))?;
     }
-    tmp.persist(path)
-        .map_err(|e| ImageError::io(path, e.error))?;
+    tmp.persist(path).map_err(|e| ImageError::io(path, e.error))?;
     Ok(())
 }
 
@@ -43,11 +42,7 @@ mod tests {
         });
         assert!(r.is_err());
         assert!(!out.exists());
-        assert_eq!(
-            std::fs::read_dir(dir.path()).unwrap().count(),
-            0,
-            "temp file left behind"
-        );
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "temp file left behind");
     }
 
     #[test]
@@ -55,10 +50,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("x.bin");
         std::fs::write(&out, b"old").unwrap();
-        write_atomic(&out, |w| {
-            w.write_all(b"new").map_err(|e| ImageError::io(&out, e))
-        })
-        .unwrap();
+        write_atomic(&out, |w| w.write_all(b"new").map_err(|e| ImageError::io(&out, e))).unwrap();
         assert_eq!(std::fs::read(&out).unwrap(), b"new");
     }
 }

@@ -37,21 +37,12 @@ pub enum ImageError {
 
 impl ImageError {
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
-        ImageError::Io {
-            path: path.to_path_buf(),
-            source,
-        }
+        ImageError::Io { path: path.to_path_buf(), source }
     }
     pub(crate) fn decode(path: &std::path::Path, message: impl ToString) -> Self {
-        ImageError::Decode {
-            path: path.to_path_buf(),
-            message: message.to_string(),
-        }
+        ImageError::Decode { path: path.to_path_buf(), message: message.to_string() }
     }
     pub(crate) fn invalid(path: &std::path::Path, message: impl ToString) -> Self {
-        ImageError::Invalid {
-            path: path.to_path_buf(),
-            message: message.to_string(),
-        }
+        ImageError::Invalid { path: path.to_path_buf(), message: message.to_string() }
     }
 }

@@ -2,8 +2,8 @@ use std::io::Write;
 use std::path::Path;
 
 use exr::prelude::{
-    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer,
-    LayerAttributes, SmallVec, WritableImage,
+    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
+    SmallVec, WritableImage,
 };
 
 use crate::{write_atomic, HdrImage, ImageError, MAX_DIMENSION};
@@ -25,21 +25,13 @@ pub struct Layers {
 impl Layers {
     /// An empty set of channels for an image of the given size.
     pub fn new(width: u32, height: u32) -> Self {
-        Layers {
-            width,
-            height,
-            channels: Vec::new(),
-        }
+        Layers { width, height, channels: Vec::new() }
     }
 
     /// Adds one channel; replaces an existing channel of the same name.
     pub fn push(&mut self, name: impl Into<String>, samples: Vec<f32>) {
         let name = name.into();
-        assert_eq!(
-            samples.len(),
-            self.width as usize * self.height as usize,
-            "channel {name} has the wrong size"
-        );
+        assert_eq!(samples.len(), self.width as usize * self.height as usize, "channel {name} has the wrong size");
         self.channels.retain(|(n, _)| *n != name);
         self.channels.push((name, samples));
     }
@@ -55,27 +47,16 @@ impl Layers {
     }
 
     fn push_vec3(&mut self, prefix: &str, names: [&str; 3], image: &HdrImage) {
-        assert_eq!(
-            (image.width, image.height),
-            (self.width, self.height),
-            "layer size mismatch"
-        );
+        assert_eq!((image.width, image.height), (self.width, self.height), "layer size mismatch");
         for (c, n) in names.iter().enumerate() {
-            let name = if prefix.is_empty() {
-                n.to_string()
-            } else {
-                format!("{prefix}.{n}")
-            };
+            let name = if prefix.is_empty() { n.to_string() } else { format!("{prefix}.{n}") };
             self.push(name, image.channel(c));
         }
     }
 
     /// The channel of that name, if present.
     pub fn get(&self, name: &str) -> Option<&[f32]> {
-        self.channels
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, s)| s.as_slice())
+        self.channels.iter().find(|(n, _)| n == name).map(|(_, s)| s.as_slice())
     }
 
     /// The RGB image stored as `R,G,B` (empty prefix) or `prefix.R/G/B`, if all three exist.
@@ -114,52 +95,29 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
         .channels
         .iter()
         .map(|(name, s)| {
-            let clean = s
-                .iter()
-                .map(|&v| if v.is_finite() { v } else { 0.0 })
-                .collect();
+            let clean = s.iter().map(|&v| if v.is_finite() { v } else { 0.0 }).collect();
             AnyChannel::new(name.as_str(), FlatSamples::F32(clean))
         })
         .collect();
-    let layer = Layer::new(
-        size,
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(channels),
-    );
+    let layer = Layer::new(size, LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
     let image = Image::from_layer(layer);
     // exr needs a seekable writer: encode to memory, then write the bytes atomically.
     let mut encoded = std::io::Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut encoded)
-        .map_err(|e| ImageError::decode(path, e))?;
-    write_atomic(path, |w| {
-        w.write_all(encoded.get_ref())
-            .map_err(|e| ImageError::io(path, e))
-    })
+    image.write().to_buffered(&mut encoded).map_err(|e| ImageError::decode(path, e))?;
+    write_atomic(path, |w| w.write_all(encoded.get_ref()).map_err(|e| ImageError::io(path, e)))
 }
 
 /// Reads every channel of the first part of an EXR (flat, largest resolution level), as f32.
 /// Channels of other layers in the same part keep their full `layer.channel` names.
 pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
     if !path.exists() {
-        return Err(ImageError::io(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
-        ));
+        return Err(ImageError::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "no such file")));
     }
     let image = read_all_flat_layers_from_file(path).map_err(|e| ImageError::decode(path, e))?;
-    let layer = image
-        .layer_data
-        .first()
-        .ok_or_else(|| ImageError::decode(path, "no image part"))?;
+    let layer = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;
     let (w, h) = (layer.size.width(), layer.size.height());
     if w == 0 || h == 0 || w > MAX_DIMENSION as usize || h > MAX_DIMENSION as usize {
-        return Err(ImageError::invalid(
-            path,
-            format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}"),
-        ));
+        return Err(ImageError::invalid(path, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
     }
     let prefix = layer.attributes.layer_name.as_ref().map(|n| n.to_string());
     let mut out = Layers::new(w as u32, h as u32);
@@ -170,10 +128,7 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
         };
         let samples: Vec<f32> = ch.sample_data.values_as_f32().collect();
         if samples.len() != w * h {
-            return Err(ImageError::invalid(
-                path,
-                format!("channel {name} is subsampled, which rtd does not read"),
-            ));
+            return Err(ImageError::invalid(path, format!("channel {name} is subsampled, which rtd does not read")));
         }
         out.channels.push((name, samples));
     }
@@ -189,11 +144,7 @@ mod tests {
     fn round_trip_named_channels() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("t.exr");
-        let img = HdrImage::from_pixels(
-            3,
-            2,
-            (0..6).map(|i| Vec3::new(i as f32, 1e6, -0.5)).collect(),
-        );
+        let img = HdrImage::from_pixels(3, 2, (0..6).map(|i| Vec3::new(i as f32, 1e6, -0.5)).collect());
         let mut layers = Layers::new(3, 2);
         layers.push_rgb("", &img);
         layers.push_xyz("normal", &img);
@@ -202,10 +153,7 @@ mod tests {
         let back = read_exr(&path).unwrap();
         assert_eq!(back.rgb("").unwrap(), img);
         assert_eq!(back.xyz("normal").unwrap(), img);
-        assert_eq!(
-            back.get("depth.Z").unwrap(),
-            &[0.0, 1.0, 2.0, 3.0, 0.0, 5.0]
-        );
+        assert_eq!(back.get("depth.Z").unwrap(), &[0.0, 1.0, 2.0, 3.0, 0.0, 5.0]);
     }
 
     #[test]

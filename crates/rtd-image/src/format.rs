@@ -16,17 +16,12 @@ pub enum ImageFormat {
 impl ImageFormat {
     /// The format named by `path`'s extension (case-insensitive), or an error naming the file.
     pub fn from_path(path: &Path) -> Result<Self, ImageError> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
+        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
             Some("exr") => Ok(ImageFormat::Exr),
             Some("png") => Ok(ImageFormat::Png),
             Some("jpg") | Some("jpeg") => Ok(ImageFormat::Jpeg),
-            _ => Err(ImageError::UnknownFormat {
-                path: path.to_path_buf(),
-            }),
+            _ => Err(ImageError::UnknownFormat { path: path.to_path_buf() }),
         }
     }
 }
@@ -37,14 +32,8 @@ mod tests {
 
     #[test]
     fn extensions() {
-        assert_eq!(
-            ImageFormat::from_path(Path::new("a/b.EXR")).unwrap(),
-            ImageFormat::Exr
-        );
-        assert_eq!(
-            ImageFormat::from_path(Path::new("b.jpeg")).unwrap(),
-            ImageFormat::Jpeg
-        );
+        assert_eq!(ImageFormat::from_path(Path::new("a/b.EXR")).unwrap(), ImageFormat::Exr);
+        assert_eq!(ImageFormat::from_path(Path::new("b.jpeg")).unwrap(), ImageFormat::Jpeg);
         assert!(ImageFormat::from_path(Path::new("b.tiff")).is_err());
         assert!(ImageFormat::from_path(Path::new("noext")).is_err());
     }

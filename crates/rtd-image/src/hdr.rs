@@ -14,25 +14,13 @@ pub struct HdrImage {
 impl HdrImage {
     /// A black image of the given size.
     pub fn new(width: u32, height: u32) -> Self {
-        HdrImage {
-            width,
-            height,
-            pixels: vec![Vec3::ZERO; width as usize * height as usize],
-        }
+        HdrImage { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
     }
 
     /// An image from pixels; `pixels.len()` must equal `width * height`.
     pub fn from_pixels(width: u32, height: u32, pixels: Vec<Vec3>) -> Self {
-        assert_eq!(
-            pixels.len(),
-            width as usize * height as usize,
-            "pixel count does not match size"
-        );
-        HdrImage {
-            width,
-            height,
-            pixels,
-        }
+        assert_eq!(pixels.len(), width as usize * height as usize, "pixel count does not match size");
+        HdrImage { width, height, pixels }
     }
 
     /// The pixel at column `x`, row `y`.
@@ -55,21 +43,13 @@ impl HdrImage {
 
     /// Builds an image from three planes of equal length `width * height`.
     pub fn from_planes(width: u32, height: u32, r: &[f32], g: &[f32], b: &[f32]) -> Self {
-        let pixels = r
-            .iter()
-            .zip(g)
-            .zip(b)
-            .map(|((&r, &g), &b)| Vec3::new(r, g, b))
-            .collect();
+        let pixels = r.iter().zip(g).zip(b).map(|((&r, &g), &b)| Vec3::new(r, g, b)).collect();
         Self::from_pixels(width, height, pixels)
     }
 
     /// Mean of all pixels.
     pub fn mean(&self) -> Vec3 {
-        let sum = self
-            .pixels
-            .iter()
-            .fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
+        let sum = self.pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
         (sum / self.pixels.len().max(1) as f64).as_vec3()
     }
 

@@ -60,51 +60,27 @@ pub fn tonemap_to_srgb8(v: Vec3, exposure: f32, tonemap: Tonemap) -> [u8; 3] {
 }
 
 /// Writes an 8-bit sRGB PNG or JPEG (chosen by `path`'s extension), atomically.
-pub fn write_ldr(
-    path: &Path,
-    image: &HdrImage,
-    exposure: f32,
-    tonemap: Tonemap,
-) -> Result<(), ImageError> {
+pub fn write_ldr(path: &Path, image: &HdrImage, exposure: f32, tonemap: Tonemap) -> Result<(), ImageError> {
     let format = match ImageFormat::from_path(path)? {
         ImageFormat::Png => image::ImageFormat::Png,
         ImageFormat::Jpeg => image::ImageFormat::Jpeg,
-        ImageFormat::Exr => {
-            return Err(ImageError::invalid(
-                path,
-                "EXR is not an 8-bit format; use write_exr",
-            ))
-        }
+        ImageFormat::Exr => return Err(ImageError::invalid(path, "EXR is not an 8-bit format; use write_exr")),
     };
-    let bytes: Vec<u8> = image
-        .pixels
-        .iter()
-        .flat_map(|&p| tonemap_to_srgb8(p, exposure, tonemap))
-        .collect();
+    let bytes: Vec<u8> = image.pixels.iter().flat_map(|&p| tonemap_to_srgb8(p, exposure, tonemap)).collect();
     let buf = image::RgbImage::from_raw(image.width, image.height, bytes)
         .ok_or_else(|| ImageError::invalid(path, "pixel buffer does not match image size"))?;
     let mut encoded = std::io::Cursor::new(Vec::new());
-    buf.write_to(&mut encoded, format)
-        .map_err(|e| ImageError::decode(path, e))?;
-    write_atomic(path, |w| {
-        std::io::Write::write_all(w, encoded.get_ref()).map_err(|e| ImageError::io(path, e))
-    })
+    buf.write_to(&mut encoded, format).map_err(|e| ImageError::decode(path, e))?;
+    write_atomic(path, |w| std::io::Write::write_all(w, encoded.get_ref()).map_err(|e| ImageError::io(path, e)))
 }
 
 /// Reads a PNG or JPEG as sRGB-encoded LDR and returns it as linear RGB in [0,1].
 pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
     let reader = image::ImageReader::open(path).map_err(|e| ImageError::io(path, e))?;
-    let reader = reader
-        .with_guessed_format()
-        .map_err(|e| ImageError::io(path, e))?;
-    let (w, h) = reader
-        .into_dimensions()
-        .map_err(|e| ImageError::decode(path, e))?;
+    let reader = reader.with_guessed_format().map_err(|e| ImageError::io(path, e))?;
+    let (w, h) = reader.into_dimensions().map_err(|e| ImageError::decode(path, e))?;
     if w == 0 || h == 0 || w > MAX_DIMENSION || h > MAX_DIMENSION {
-        return Err(ImageError::invalid(
-            path,
-            format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}"),
-        ));
+        return Err(ImageError::invalid(path, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
     }
     let decoded = image::ImageReader::open(path)
         .map_err(|e| ImageError::io(path, e))?
@@ -140,26 +116,10 @@ mod tests {
 
     #[test]
     fn tonemap_handles_extremes() {
-        assert_eq!(
-            tonemap_to_srgb8(
-                Vec3::new(f32::NAN, f32::INFINITY, -1.0),
-                0.0,
-                Tonemap::Clamp
-            ),
-            [0, 0, 0]
-        );
-        assert_eq!(
-            tonemap_to_srgb8(Vec3::splat(1e6), 0.0, Tonemap::Clamp),
-            [255, 255, 255]
-        );
-        assert_eq!(
-            tonemap_to_srgb8(Vec3::splat(1e6), 0.0, Tonemap::Aces),
-            [255, 255, 255]
-        );
-        assert_eq!(
-            tonemap_to_srgb8(Vec3::splat(0.5), 1.0, Tonemap::Clamp),
-            [255, 255, 255]
-        );
+        assert_eq!(tonemap_to_srgb8(Vec3::new(f32::NAN, f32::INFINITY, -1.0), 0.0, Tonemap::Clamp), [0, 0, 0]);
+        assert_eq!(tonemap_to_srgb8(Vec3::splat(1e6), 0.0, Tonemap::Clamp), [255, 255, 255]);
+        assert_eq!(tonemap_to_srgb8(Vec3::splat(1e6), 0.0, Tonemap::Aces), [255, 255, 255]);
+        assert_eq!(tonemap_to_srgb8(Vec3::splat(0.5), 1.0, Tonemap::Clamp), [255, 255, 255]);
     }
 
     #[test]

@@ -40,13 +40,7 @@ pub enum Lobe {
     PassThrough,
 }
 
-const LOBES: [Lobe; 5] = [
-    Lobe::Diffuse,
-    Lobe::Specular,
-    Lobe::Dielectric,
-    Lobe::Conductor,
-    Lobe::PassThrough,
-];
+const LOBES: [Lobe; 5] = [Lobe::Diffuse, Lobe::Specular, Lobe::Dielectric, Lobe::Conductor, Lobe::PassThrough];
 
 /// Material parameters at a surface point, as the BSDF needs them.
 #[derive(Debug, Clone, Copy)]
@@ -128,20 +122,10 @@ impl Bsdf {
             1.0 - op,
         ];
         let total: f32 = w.iter().sum();
-        let prob = if total > 0.0 {
-            w.map(|x| x / total)
-        } else {
-            [1.0, 0.0, 0.0, 0.0, 0.0]
-        };
+        let prob = if total > 0.0 { w.map(|x| x / total) } else { [1.0, 0.0, 0.0, 0.0, 0.0] };
         let smooth = ggx.is_smooth();
         let glass_smooth = smooth || (p.ior - 1.0).abs() < 1e-3;
-        Bsdf {
-            p,
-            ggx,
-            f0,
-            prob,
-            delta: [false, smooth, glass_smooth, smooth, true],
-        }
+        Bsdf { p, ggx, f0, prob, delta: [false, smooth, glass_smooth, smooth, true] }
     }
 
     /// True if some lobe with non-zero probability is not a delta (light sampling is useful).
@@ -166,16 +150,11 @@ impl Bsdf {
                 let (wo, wi) = (two_sided(wo), two_sided(wi));
                 match lobe {
                     Lobe::Diffuse => {
-                        self.p.base_color
-                            * FRAC_1_PI
-                            * (1.0 - self.layer_f(wo.z))
-                            * (1.0 - self.layer_f(wi.z))
+                        self.p.base_color * FRAC_1_PI * (1.0 - self.layer_f(wo.z)) * (1.0 - self.layer_f(wi.z))
                     }
-                    Lobe::Specular => self.microfacet_reflection(wo, wi, |c| {
-                        Vec3::splat(self.p.specular) * fresnel_schlick(self.f0, c)
-                    }),
-                    _ => self
-                        .microfacet_reflection(wo, wi, |c| fresnel_schlick(self.p.base_color, c)),
+                    Lobe::Specular => self
+                        .microfacet_reflection(wo, wi, |c| Vec3::splat(self.p.specular) * fresnel_schlick(self.f0, c)),
+                    _ => self.microfacet_reflection(wo, wi, |c| fresnel_schlick(self.p.base_color, c)),
                 }
             }
             Lobe::Dielectric => self.dielectric_f(wo, wi),
@@ -356,11 +335,7 @@ impl Bsdf {
             Lobe::Dielectric => {
                 let wm = self.ggx.sample_visible(wo, u);
                 let r = fresnel_dielectric(wo.dot(wm), self.p.ior);
-                let wi = if uc < r {
-                    reflect(wo, wm)
-                } else {
-                    refract(wo, wm, self.p.ior)?.0
-                };
+                let wi = if uc < r { reflect(wo, wm) } else { refract(wo, wm, self.p.ior)?.0 };
                 // A reflection must stay on wo's side and a refraction must cross.
                 if (uc < r) != (wo.z * wi.z > 0.0) {
                     return None;
@@ -374,29 +349,14 @@ impl Bsdf {
             return None;
         }
         let f = self.f(wo, wi);
-        Some(BsdfSample {
-            wi,
-            weight: f * wi.z.abs() / pdf,
-            pdf,
-            delta: false,
-        })
+        Some(BsdfSample { wi, weight: f * wi.z.abs() / pdf, pdf, delta: false })
     }
 
     /// Samples a delta lobe; `scale` is the lobe's mixture weight over its selection probability.
-    fn sample_delta(
-        &self,
-        lobe: Lobe,
-        wo: Vec3,
-        uc: f32,
-        scale: f32,
-        pl: f32,
-    ) -> Option<BsdfSample> {
+    fn sample_delta(&self, lobe: Lobe, wo: Vec3, uc: f32, scale: f32, pl: f32) -> Option<BsdfSample> {
         let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
         let (wi, weight) = match lobe {
-            Lobe::Specular => (
-                mirror,
-                Vec3::splat(self.p.specular) * fresnel_schlick(self.f0, wo.z),
-            ),
+            Lobe::Specular => (mirror, Vec3::splat(self.p.specular) * fresnel_schlick(self.f0, wo.z)),
             Lobe::Conductor => (mirror, fresnel_schlick(self.p.base_color, wo.z)),
             Lobe::Dielectric => {
                 let r = fresnel_dielectric(wo.z, self.p.ior);
@@ -410,12 +370,7 @@ impl Bsdf {
             Lobe::PassThrough => (-wo, Vec3::ONE),
             Lobe::Diffuse => return None,
         };
-        Some(BsdfSample {
-            wi,
-            weight: weight * scale,
-            pdf: pl,
-            delta: true,
-        })
+        Some(BsdfSample { wi, weight: weight * scale, pdf: pl, delta: true })
     }
 }
 
@@ -423,4 +378,266 @@ impl Bsdf {
 #[inline]
 fn two_sided(w: Vec3) -> Vec3 {
     Vec3::new(w.x, w.y, w.z.abs())
+}
+
+#[cfg(test)]
+mod tests {
+    //! Statistical tests of the BSDF: sampling against its pdf (chi-square), sample weights
+    //! against f·cos/pdf, and energy conservation (directional albedo ≤ 1).
+    use super::*;
+    use crate::Sampler;
+    use std::f64::consts::PI as PI64;
+
+    const COS_BINS: usize = 16;
+    const PHI_BINS: usize = 32;
+    const SUB: usize = 4;
+
+    /// Midpoint rule on a SUB×SUB grid over [c0,c1]×[p0,p1].
+    fn midpoint(f: &dyn Fn(f64, f64) -> f64, c0: f64, c1: f64, p0: f64, p1: f64) -> f64 {
+        let mut acc = 0.0;
+        for a in 0..SUB {
+            for b in 0..SUB {
+                acc +=
+                    f(c0 + (c1 - c0) * (a as f64 + 0.5) / SUB as f64, p0 + (p1 - p0) * (b as f64 + 0.5) / SUB as f64);
+            }
+        }
+        acc * (c1 - c0) * (p1 - p0) / (SUB * SUB) as f64
+    }
+
+    /// Adaptive 2D quadrature: split a cell in four until the split changes the estimate by
+    /// less than 1e-3 relative (or 1e-7 absolute), up to 7 levels.
+    fn integrate(f: &dyn Fn(f64, f64) -> f64, c0: f64, c1: f64, p0: f64, p1: f64, depth: u32) -> f64 {
+        let (cm, pm) = ((c0 + c1) * 0.5, (p0 + p1) * 0.5);
+        let coarse = midpoint(f, c0, c1, p0, p1);
+        let kids = [(c0, cm, p0, pm), (cm, c1, p0, pm), (c0, cm, pm, p1), (cm, c1, pm, p1)];
+        let fine: f64 = kids.iter().map(|k| midpoint(f, k.0, k.1, k.2, k.3)).sum();
+        if depth >= 7 || (fine - coarse).abs() <= 1e-7 + 1e-3 * fine {
+            return fine;
+        }
+        kids.iter().map(|k| integrate(f, k.0, k.1, k.2, k.3, depth + 1)).sum()
+    }
+
+    fn dir(cos: f64, phi: f64) -> Vec3 {
+        let s = (1.0 - cos * cos).max(0.0).sqrt();
+        Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, cos as f32)
+    }
+
+    fn wo_at(cos: f32) -> Vec3 {
+        Vec3::new((1.0 - cos * cos).max(0.0).sqrt(), 0.0, cos)
+    }
+
+    /// Upper tail probability of a chi-square statistic (Wilson–Hilferty normal approximation).
+    fn chi2_p_value(x: f64, dof: f64) -> f64 {
+        let z = ((x / dof).powf(1.0 / 3.0) - (1.0 - 2.0 / (9.0 * dof))) / (2.0 / (9.0 * dof)).sqrt();
+        0.5 * erfc(z / std::f64::consts::SQRT_2)
+    }
+
+    /// Complementary error function (Numerical Recipes' Chebyshev fit, |error| < 1.2e-7).
+    fn erfc(x: f64) -> f64 {
+        let z = x.abs();
+        let t = 1.0 / (1.0 + 0.5 * z);
+        let r = t
+            * (-z * z - 1.26551223
+                + t * (1.00002368
+                    + t * (0.37409196
+                        + t * (0.09678418
+                            + t * (-0.18628806
+                                + t * (0.27886807
+                                    + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
+                .exp();
+        if x >= 0.0 {
+            r
+        } else {
+            2.0 - r
+        }
+    }
+
+    /// Samples `n` directions and checks the histogram against the integrated pdf.
+    /// Returns (p-value, mean sample weight).
+    fn check(p: BsdfParams, wo: Vec3, n: u32, label: &str) -> (f64, Vec3) {
+        let bsdf = Bsdf::new(p, wo);
+        let mut observed = vec![0f64; COS_BINS * PHI_BINS];
+        let mut weight_sum = glam::DVec3::ZERO;
+        for i in 0..n {
+            let mut s = Sampler::new(0x5eed, 1, i);
+            let ul = s.get_1d();
+            let u = s.get_2d();
+            let Some(bs) = bsdf.sample(wo, ul, u) else { continue };
+            assert!(bs.weight.is_finite() && bs.weight.min_element() >= 0.0, "{label}: bad weight {:?}", bs.weight);
+            weight_sum += bs.weight.as_dvec3();
+            if bs.delta {
+                continue;
+            }
+            // The weight must equal f·|cos|/pdf recomputed from the public methods.
+            let f = bsdf.f(wo, bs.wi) * bs.wi.z.abs();
+            let pdf = bsdf.pdf(wo, bs.wi);
+            assert!((bs.pdf - pdf).abs() <= 1e-3 * pdf.max(1e-3), "{label}: pdf {} vs {}", bs.pdf, pdf);
+            let expect = f / pdf;
+            assert!(
+                (bs.weight - expect).abs().max_element() <= 2e-3 * expect.max_element().max(1.0),
+                "{label}: weight {:?} vs {:?}",
+                bs.weight,
+                expect
+            );
+            let c = ((bs.wi.z as f64 + 1.0) * 0.5 * COS_BINS as f64).clamp(0.0, COS_BINS as f64 - 1.0) as usize;
+            let phi = (bs.wi.y as f64).atan2(bs.wi.x as f64).rem_euclid(2.0 * PI64);
+            let ph = ((phi / (2.0 * PI64)) * PHI_BINS as f64).min(PHI_BINS as f64 - 1.0) as usize;
+            observed[c * PHI_BINS + ph] += 1.0;
+        }
+        // Expected counts: n × ∫_bin pdf dω (dω = dcos dφ), by adaptive quadrature so that
+        // narrow peaks (near-1 IOR, grazing angles) are resolved.
+        let mut expected = vec![0f64; COS_BINS * PHI_BINS];
+        let dc = 2.0 / COS_BINS as f64;
+        let dp = 2.0 * PI64 / PHI_BINS as f64;
+        let pdf = |c: f64, p: f64| bsdf.pdf(wo, dir(c, p)) as f64;
+        for ci in 0..COS_BINS {
+            for pi in 0..PHI_BINS {
+                let c0 = -1.0 + dc * ci as f64;
+                let p0 = dp * pi as f64;
+                expected[ci * PHI_BINS + pi] = integrate(&pdf, c0, c0 + dc, p0, p0 + dp, 0) * n as f64;
+            }
+        }
+        // ∫ pdf over the sphere must equal the fraction of accepted non-delta samples.
+        let (tot_e, tot_o): (f64, f64) = (expected.iter().sum(), observed.iter().sum());
+        assert!(
+            (tot_e - tot_o).abs() <= 4.0 * tot_o.sqrt() + 2e-3 * n as f64,
+            "{label}: pdf integrates to {:.4} but {:.4} of samples were accepted non-delta",
+            tot_e / n as f64,
+            tot_o / n as f64
+        );
+        // Pool low-expectation bins (the standard rule: expected ≥ 5 per cell).
+        let mut order: Vec<usize> = (0..expected.len()).collect();
+        order.sort_by(|&a, &b| expected[a].partial_cmp(&expected[b]).unwrap());
+        let (mut chi2, mut dof) = (0.0, 0usize);
+        let (mut pool_e, mut pool_o) = (0.0, 0.0);
+        for &i in &order {
+            if expected[i] < 5.0 {
+                pool_e += expected[i];
+                pool_o += observed[i];
+                if observed[i] > 0.0 && expected[i] == 0.0 {
+                    panic!("{label}: {} samples in bin {i} where the pdf is zero", observed[i]);
+                }
+            } else {
+                chi2 += (observed[i] - expected[i]).powi(2) / expected[i];
+                dof += 1;
+            }
+        }
+        if pool_e >= 5.0 {
+            chi2 += (pool_o - pool_e).powi(2) / pool_e;
+            dof += 1;
+        }
+        let pval = if dof > 1 { chi2_p_value(chi2, (dof - 1) as f64) } else { 1.0 };
+        if std::env::var("RTD_CHI2_DEBUG").is_ok() && pval < 1e-5 {
+            let mut worst: Vec<(f64, usize)> = (0..expected.len())
+                .filter(|&i| expected[i] >= 5.0)
+                .map(|i| ((observed[i] - expected[i]).powi(2) / expected[i], i))
+                .collect();
+            worst.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap());
+            for (c, i) in worst.iter().take(6) {
+                eprintln!(
+                    "{label}: bin cos#{} phi#{} obs {} exp {:.1} contrib {:.1}",
+                    i / PHI_BINS,
+                    i % PHI_BINS,
+                    observed[*i],
+                    expected[*i],
+                    c
+                );
+            }
+            let tot_o: f64 = observed.iter().sum();
+            let tot_e: f64 = expected.iter().sum();
+            eprintln!("{label}: total obs {tot_o} exp {tot_e:.1}");
+        }
+        (pval, (weight_sum / n as f64).as_vec3())
+    }
+
+    fn params(metallic: f32, roughness: f32, transmission: f32, ior: f32) -> BsdfParams {
+        BsdfParams { base_color: Vec3::ONE, metallic, roughness, transmission, ior, ..BsdfParams::default() }
+    }
+
+    /// Every non-delta lobe and their mixtures, across roughness, IOR and incidence.
+    #[test]
+    fn sampling_matches_pdf_chi_square() {
+        let mut cases: Vec<(String, BsdfParams, f32)> = Vec::new();
+        for &cos in &[0.9f32, 0.5, 0.1, 0.02] {
+            cases.push((format!("lambert cos={cos}"), BsdfParams { specular: 0.0, ..params(0.0, 1.0, 0.0, 1.5) }, cos));
+            for &r in &[0.3f32, 0.6, 1.0] {
+                cases.push((format!("metal r={r} cos={cos}"), params(1.0, r, 0.0, 1.5), cos));
+                for &ior in &[1.1f32, 1.5, 3.0] {
+                    cases.push((format!("plastic r={r} ior={ior} cos={cos}"), params(0.0, r, 0.0, ior), cos));
+                    cases.push((format!("glass r={r} ior={ior} cos={cos}"), params(0.0, r, 1.0, ior), cos));
+                    cases.push((format!("glass inside r={r} ior={ior} cos={cos}"), params(0.0, r, 1.0, ior), -cos));
+                }
+                cases.push((format!("mixed r={r} cos={cos}"), params(0.4, r, 0.3, 1.5), cos));
+            }
+        }
+        let bonferroni = 1e-3 / cases.len() as f64;
+        let mut failures = Vec::new();
+        for (label, p, cos) in &cases {
+            if let Ok(f) = std::env::var("RTD_CHI2_ONLY") {
+                if !label.contains(&f) {
+                    continue;
+                }
+            }
+            let (pval, _) = check(*p, wo_at(*cos), 60_000, label);
+            if pval < bonferroni {
+                failures.push(format!("{label}: p = {pval:.2e}"));
+            }
+        }
+        assert!(failures.is_empty(), "chi-square failures:\n{}", failures.join("\n"));
+    }
+
+    /// Mean sample weight is the directional albedo ∫ f cos dω, which must not exceed 1 for a
+    /// white material lit from outside, including delta lobes and grazing angles.
+    #[test]
+    fn energy_is_conserved() {
+        for &cos in &[1.0f32, 0.7, 0.3, 0.05, 0.005] {
+            for &r in &[0.0f32, 0.02, 0.3, 0.7, 1.0] {
+                for &ior in &[1.0f32, 1.0001, 1.5, 3.0] {
+                    for (m, t) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.5, 0.5)] {
+                        let p = params(m, r, t, ior);
+                        let label = format!("m={m} t={t} r={r} ior={ior} cos={cos}");
+                        let (_, albedo) = check_energy(p, wo_at(cos), 20_000, &label);
+                        assert!(albedo.max_element() <= 1.01, "{label}: albedo {albedo}");
+                        // Clear glass and mirrors lose no energy at all.
+                        if (m == 1.0 || t == 1.0) && r == 0.0 {
+                            assert!(albedo.min_element() >= 1.0 / (ior * ior) - 1e-3, "{label}: albedo {albedo}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn check_energy(p: BsdfParams, wo: Vec3, n: u32, label: &str) -> (f64, Vec3) {
+        let bsdf = Bsdf::new(p, wo);
+        let mut sum = glam::DVec3::ZERO;
+        for i in 0..n {
+            let mut s = Sampler::new(0x5eed, 2, i);
+            let ul = s.get_1d();
+            let u = s.get_2d();
+            if let Some(bs) = bsdf.sample(wo, ul, u) {
+                assert!(bs.weight.is_finite() && bs.pdf > 0.0, "{label}: {:?}", bs);
+                sum += bs.weight.as_dvec3();
+            }
+        }
+        (0.0, (sum / n as f64).as_vec3())
+    }
+
+    #[test]
+    fn smooth_glass_at_ior_one_passes_straight_through() {
+        let wo = wo_at(0.6);
+        let b = Bsdf::new(params(0.0, 0.0, 1.0, 1.0), wo);
+        let s = b.sample(wo, 0.5, Vec2::new(0.3, 0.3)).unwrap();
+        assert!(s.delta && (s.wi + wo).length() < 1e-6 && (s.weight - Vec3::ONE).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn pass_through_for_blend() {
+        let wo = wo_at(0.8);
+        let b = Bsdf::new(BsdfParams { opacity: 0.0, ..params(0.0, 0.5, 0.0, 1.5) }, wo);
+        assert!(!b.has_non_delta());
+        let s = b.sample(wo, 0.2, Vec2::new(0.5, 0.5)).unwrap();
+        assert_eq!(s.wi, -wo);
+        assert_eq!(s.weight, Vec3::ONE);
+    }
 }

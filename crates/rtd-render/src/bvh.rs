@@ -57,13 +57,7 @@ impl RayShear {
             std::mem::swap(&mut kx, &mut ky);
         }
         let s = Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]);
-        RayShear {
-            origin: origin.into(),
-            kx,
-            ky,
-            kz,
-            s,
-        }
+        RayShear { origin: origin.into(), kx, ky, kz, s }
     }
 
     /// Watertight ray/triangle test: (t, barycentrics) or None.
@@ -121,37 +115,14 @@ impl SceneBvh {
         let tris: Vec<BvhTriangle> = scene
             .triangles
             .iter()
-            .map(|t| BvhTriangle {
-                v0: t.p[0].into(),
-                v1: t.p[1].into(),
-                v2: t.p[2].into(),
-            })
+            .map(|t| BvhTriangle { v0: t.p[0].into(), v1: t.p[1].into(), v2: t.p[2].into() })
             .collect();
         if tris.is_empty() {
-            return SceneBvh {
-                bvh: CwBvh::default(),
-                verts: vec![],
-                slot_tri: vec![],
-                mask: vec![],
-                uvs: vec![],
-            };
+            return SceneBvh { bvh: CwBvh::default(), verts: vec![], slot_tri: vec![], mask: vec![], uvs: vec![] };
         }
-        let bvh = build_cwbvh_from_tris(
-            &tris,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
+        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
         let slot_tri: Vec<u32> = bvh.primitive_indices.clone();
-        let verts = slot_tri
-            .iter()
-            .map(|&i| {
-                [
-                    tris[i as usize].v0,
-                    tris[i as usize].v1,
-                    tris[i as usize].v2,
-                ]
-            })
-            .collect();
+        let verts = slot_tri.iter().map(|&i| [tris[i as usize].v0, tris[i as usize].v1, tris[i as usize].v2]).collect();
         let mask = slot_tri
             .iter()
             .map(|&i| {
@@ -162,17 +133,8 @@ impl SceneBvh {
                 }
             })
             .collect();
-        let uvs = slot_tri
-            .iter()
-            .map(|&i| scene.triangles[i as usize].uv)
-            .collect();
-        SceneBvh {
-            bvh,
-            verts,
-            slot_tri,
-            mask,
-            uvs,
-        }
+        let uvs = slot_tri.iter().map(|&i| scene.triangles[i as usize].uv).collect();
+        SceneBvh { bvh, verts, slot_tri, mask, uvs }
     }
 
     /// Number of triangles in the BVH.
@@ -208,26 +170,19 @@ impl SceneBvh {
         let shear = RayShear::new(origin, dir);
         let ray = BvhRay::new(origin.into(), dir.into(), 0.0, tmax);
         let mut hit = RayHit::none();
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| {
-            match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
+        let found =
+            self.bvh.ray_traverse(ray, &mut hit, |r, slot| match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
                 Some((t, b)) if !self.cut_away(slot, b, scene) => t,
                 _ => f32::INFINITY,
-            }
-        });
+            });
         if !found {
             return None;
         }
         // Barycentrics of the winning triangle (the same arithmetic, so the same values).
         let slot = hit.primitive_id as usize;
-        let bary = shear
-            .intersect(&self.verts[slot], 0.0, f32::INFINITY)
-            .map(|(_, b)| b)
-            .unwrap_or(Vec3::splat(1.0 / 3.0));
-        Some(Hit {
-            triangle: self.slot_tri[slot],
-            t: hit.t,
-            bary,
-        })
+        let bary =
+            shear.intersect(&self.verts[slot], 0.0, f32::INFINITY).map(|(_, b)| b).unwrap_or(Vec3::splat(1.0 / 3.0));
+        Some(Hit { triangle: self.slot_tri[slot], t: hit.t, bary })
     }
 
     /// True if anything blocks `origin + t·dir` for t in (0, tmax).
@@ -238,11 +193,9 @@ impl SceneBvh {
         }
         let shear = RayShear::new(origin, dir);
         let ray = BvhRay::new(origin.into(), dir.into(), 0.0, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, slot| {
-            match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
-                Some((t, b)) if !self.cut_away(slot, b, scene) => t,
-                _ => f32::INFINITY,
-            }
+        !self.bvh.ray_traverse_miss(ray, |r, slot| match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
+            Some((t, b)) if !self.cut_away(slot, b, scene) => t,
+            _ => f32::INFINITY,
         })
     }
 }
@@ -256,13 +209,8 @@ mod tests {
     fn quad_scene() -> Scene {
         // Two triangles sharing the diagonal of the unit square in the z=0 plane.
         let mut s = Scene::default();
-        let tri = |p: [Vec3; 3]| Triangle {
-            p,
-            n: [Vec3::Z; 3],
-            uv: [Vec2::ZERO; 3],
-            tangent: [Vec4::ZERO; 3],
-            material: 0,
-        };
+        let tri =
+            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 };
         s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]));
         s.push_triangle(tri([Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]));
         s.materials.push(Default::default());
@@ -277,47 +225,26 @@ mod tests {
         // mesh's outer boundary and its bounding box face, where a hit is not required.)
         for i in 1..100 {
             let x = i as f32 / 100.0;
-            let h = bvh.intersect(
-                &s,
-                Vec3::new(x, x, 1.0),
-                Vec3::new(0.0, 0.0, -1.0),
-                f32::INFINITY,
-            );
+            let h = bvh.intersect(&s, Vec3::new(x, x, 1.0), Vec3::new(0.0, 0.0, -1.0), f32::INFINITY);
             assert!(h.is_some(), "leak at {x}");
             let h = h.unwrap();
             assert!((h.t - 1.0).abs() < 1e-6);
             assert!((h.bary.element_sum() - 1.0).abs() < 1e-5);
         }
-        assert!(bvh
-            .intersect(&s, Vec3::new(1.5, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY)
-            .is_none());
+        assert!(bvh.intersect(&s, Vec3::new(1.5, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).is_none());
     }
 
     #[test]
     fn barycentrics_and_occlusion() {
         let s = quad_scene();
         let bvh = SceneBvh::build(&s);
-        let h = bvh
-            .intersect(
-                &s,
-                Vec3::new(0.75, 0.25, 2.0),
-                Vec3::NEG_Z * 2.0,
-                f32::INFINITY,
-            )
-            .unwrap();
+        let h = bvh.intersect(&s, Vec3::new(0.75, 0.25, 2.0), Vec3::NEG_Z * 2.0, f32::INFINITY).unwrap();
         assert_eq!(h.triangle, 0);
         assert!((h.t - 1.0).abs() < 1e-6);
-        let p = s.triangles[0].p[0] * h.bary.x
-            + s.triangles[0].p[1] * h.bary.y
-            + s.triangles[0].p[2] * h.bary.z;
+        let p = s.triangles[0].p[0] * h.bary.x + s.triangles[0].p[1] * h.bary.y + s.triangles[0].p[2] * h.bary.z;
         assert!((p - Vec3::new(0.75, 0.25, 0.0)).length() < 1e-6);
         assert!(bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::NEG_Z, 2.0));
         assert!(!bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::NEG_Z, 0.5));
-        assert!(!bvh.occluded(
-            &s,
-            Vec3::new(0.5, 0.2, 1.0),
-            Vec3::new(f32::NAN, 0.0, 0.0),
-            2.0
-        ));
+        assert!(!bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::new(f32::NAN, 0.0, 0.0), 2.0));
     }
 }

@@ -79,14 +79,9 @@ impl Integrator<'_> {
             };
             let s = Surface::new(scene, &hit);
             let wo = -d;
-            let material =
-                &scene.materials[scene.triangles[hit.triangle as usize].material as usize];
+            let material = &scene.materials[scene.triangles[hit.triangle as usize].material as usize];
             if depth == 0 {
-                aov = Aov {
-                    albedo: s.params.base_color,
-                    normal: s.ns,
-                    depth: (s.p - origin).length(),
-                };
+                aov = Aov { albedo: s.params.base_color, normal: s.ns, depth: (s.p - origin).length() };
             }
             // Emission, front side only unless double-sided.
             if s.params.emission != Vec3::ZERO && (material.double_sided || wo.dot(s.ng) > 0.0) {
@@ -96,8 +91,7 @@ impl Integrator<'_> {
                     // Area-to-solid-angle pdf of having sampled this point by light sampling.
                     let area = scene.triangles[hit.triangle as usize].area();
                     let dist2 = (s.p - prev_p).length_squared();
-                    let pdf_light =
-                        lights.triangle_pmf(hit.triangle) * dist2 / (wo.dot(s.ng).abs() * area);
+                    let pdf_light = lights.triangle_pmf(hit.triangle) * dist2 / (wo.dot(s.ng).abs() * area);
                     power_heuristic(prev_pdf, pdf_light)
                 };
                 radiance += beta * s.params.emission * w;
@@ -115,11 +109,7 @@ impl Integrator<'_> {
                 ior: s.params.ior,
                 specular: s.params.specular,
                 specular_color: s.params.specular_color,
-                opacity: if material.alpha_mode == AlphaMode::Blend {
-                    s.params.alpha
-                } else {
-                    1.0
-                },
+                opacity: if material.alpha_mode == AlphaMode::Blend { s.params.alpha } else { 1.0 },
             };
             let bsdf = Bsdf::new(params, wo_l);
 
@@ -129,10 +119,7 @@ impl Integrator<'_> {
             if bsdf.has_non_delta() {
                 if let Some(ls) = lights.sample(scene, s.p, u_select, u_light) {
                     let wi_l = frame.to_local(ls.wi);
-                    if ls.pdf > 0.0
-                        && ls.li != Vec3::ZERO
-                        && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l)
-                    {
+                    if ls.pdf > 0.0 && ls.li != Vec3::ZERO && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l) {
                         let f = bsdf.f(wo_l, wi_l) * wi_l.z.abs();
                         if f != Vec3::ZERO {
                             rays += 1;
@@ -143,11 +130,7 @@ impl Integrator<'_> {
                                 None => bvh.occluded(scene, from, ls.wi, f32::INFINITY),
                             };
                             if !blocked {
-                                let w = if ls.delta {
-                                    1.0
-                                } else {
-                                    power_heuristic(ls.pdf, bsdf.pdf(wo_l, wi_l))
-                                };
+                                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_l, wi_l)) };
                                 radiance += beta * f * ls.li * (w / ls.pdf);
                             }
                         }
@@ -184,11 +167,7 @@ impl Integrator<'_> {
                 break;
             }
         }
-        PathResult {
-            radiance,
-            aov,
-            rays,
-        }
+        PathResult { radiance, aov, rays }
     }
 }
 

@@ -21,8 +21,7 @@ pub use bvh::SceneBvh;
 pub use film::Film;
 pub use lights::LightSet;
 pub use render::{
-    PathTracer, RenderObserver, RenderScene, RenderSettings, RenderStats, Silent, MAX_RESOLUTION,
-    MAX_SPP,
+    PathTracer, RenderObserver, RenderScene, RenderSettings, RenderStats, Silent, MAX_RESOLUTION, MAX_SPP,
 };
 pub use sampler::Sampler;
 

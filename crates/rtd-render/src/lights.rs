@@ -74,11 +74,7 @@ impl LightSet {
     /// Collects the lights of `scene` (including its environment unless black).
     pub fn new(scene: &Scene) -> Self {
         let bounds = scene.bounds();
-        let scene_radius = if bounds.is_empty() {
-            1.0
-        } else {
-            (bounds.diagonal().length() * 0.5).max(1e-6)
-        };
+        let scene_radius = if bounds.is_empty() { 1.0 } else { (bounds.diagonal().length() * 0.5).max(1e-6) };
         let mut lights = Vec::new();
         let mut power = Vec::new();
         let mut tri_light = vec![u32::MAX; scene.triangles.len()];
@@ -103,15 +99,10 @@ impl LightSet {
         for l in &scene.lights {
             let p = match *l {
                 Light::Point { intensity, .. } => 4.0 * PI * luminance(intensity),
-                Light::Spot {
-                    intensity,
-                    cos_inner,
-                    cos_outer,
-                    ..
-                } => 2.0 * PI * luminance(intensity) * (1.0 - 0.5 * (cos_inner + cos_outer)),
-                Light::Directional { irradiance, .. } => {
-                    PI * scene_radius * scene_radius * luminance(irradiance)
+                Light::Spot { intensity, cos_inner, cos_outer, .. } => {
+                    2.0 * PI * luminance(intensity) * (1.0 - 0.5 * (cos_inner + cos_outer))
                 }
+                Light::Directional { irradiance, .. } => PI * scene_radius * scene_radius * luminance(irradiance),
             };
             if p > 0.0 && p.is_finite() {
                 lights.push(LightSource::Punctual(*l));
@@ -138,14 +129,7 @@ impl LightSet {
                 power.push(p);
             }
         }
-        LightSet {
-            select: Distribution1D::new(&power),
-            lights,
-            tri_light,
-            env_index,
-            env_dist,
-            scene_radius,
-        }
+        LightSet { select: Distribution1D::new(&power), lights, tri_light, env_index, env_dist, scene_radius }
     }
 
     /// Number of lights.
@@ -207,13 +191,7 @@ impl LightSet {
                 }
                 // Area to solid angle: pdf_ω = d² / (|cos_l| · A).
                 let pdf = sel * dist2 / (cos_l.abs() * area);
-                Some(LightSample {
-                    wi,
-                    li: triangle_emission(scene, tri, b),
-                    pdf,
-                    point: Some(q),
-                    delta: false,
-                })
+                Some(LightSample { wi, li: triangle_emission(scene, tri, b), pdf, point: Some(q), delta: false })
             }
             LightSource::Punctual(l) => Some(sample_punctual(&l, p, sel)),
             LightSource::Environment => {
@@ -222,13 +200,7 @@ impl LightSet {
                     _ => (sample_uniform_sphere(u), 1.0 / (4.0 * PI)),
                 };
                 let li = scene.environment.radiance(wi);
-                Some(LightSample {
-                    wi,
-                    li,
-                    pdf: sel * pdf_dir,
-                    point: None,
-                    delta: false,
-                })
+                Some(LightSample { wi, li, pdf: sel * pdf_dir, point: None, delta: false })
             }
         }
     }
@@ -242,51 +214,23 @@ impl LightSet {
 /// Samples a delta light from `p`.
 fn sample_punctual(l: &Light, p: Vec3, sel: f32) -> LightSample {
     match *l {
-        Light::Point {
-            position,
-            intensity,
-        } => {
+        Light::Point { position, intensity } => {
             let d = position - p;
             let dist2 = d.length_squared().max(f32::MIN_POSITIVE);
-            LightSample {
-                wi: d / dist2.sqrt(),
-                li: intensity / dist2,
-                pdf: sel,
-                point: Some(position),
-                delta: true,
-            }
+            LightSample { wi: d / dist2.sqrt(), li: intensity / dist2, pdf: sel, point: Some(position), delta: true }
         }
-        Light::Spot {
-            position,
-            direction,
-            intensity,
-            cos_inner,
-            cos_outer,
-        } => {
+        Light::Spot { position, direction, intensity, cos_inner, cos_outer } => {
             let d = position - p;
             let dist2 = d.length_squared().max(f32::MIN_POSITIVE);
             let wi = d / dist2.sqrt();
             // glTF's smooth cone falloff: saturate((cosθ − cos_outer)/(cos_inner − cos_outer))².
             let cd = direction.dot(-wi);
             let a = ((cd - cos_outer) / (cos_inner - cos_outer).max(1e-4)).clamp(0.0, 1.0);
-            LightSample {
-                wi,
-                li: intensity * (a * a) / dist2,
-                pdf: sel,
-                point: Some(position),
-                delta: true,
-            }
+            LightSample { wi, li: intensity * (a * a) / dist2, pdf: sel, point: Some(position), delta: true }
         }
-        Light::Directional {
-            direction,
-            irradiance,
-        } => LightSample {
-            wi: -direction,
-            li: irradiance,
-            pdf: sel,
-            point: None,
-            delta: true,
-        },
+        Light::Directional { direction, irradiance } => {
+            LightSample { wi: -direction, li: irradiance, pdf: sel, point: None, delta: true }
+        }
     }
 }
 
@@ -296,9 +240,7 @@ fn build_env_distribution(img: &rtd_image::HdrImage) -> EnvDistribution {
     let rows: Vec<Distribution1D> = (0..h)
         .map(|y| {
             let sin_theta = (PI * (y as f32 + 0.5) / h as f32).sin();
-            let weights: Vec<f32> = (0..w)
-                .map(|x| luminance(img.pixels[y * w + x]) * sin_theta)
-                .collect();
+            let weights: Vec<f32> = (0..w).map(|x| luminance(img.pixels[y * w + x]) * sin_theta).collect();
             Distribution1D::new(&weights)
         })
         .collect();
@@ -370,9 +312,6 @@ mod tests {
         }
         // E[1/pdf] = total solid angle 4π.
         let est = sum_inv / n as f64;
-        assert!(
-            (est - 4.0 * std::f64::consts::PI).abs() < 0.05 * 4.0 * std::f64::consts::PI,
-            "{est}"
-        );
+        assert!((est - 4.0 * std::f64::consts::PI).abs() < 0.05 * 4.0 * std::f64::consts::PI, "{est}");
     }
 }

@@ -18,9 +18,7 @@ impl Ggx {
     /// The distribution for perceptual roughness `r` (α = r²).
     #[inline]
     pub fn from_roughness(r: f32) -> Self {
-        Ggx {
-            alpha: (r * r).max(0.0),
-        }
+        Ggx { alpha: (r * r).max(0.0) }
     }
 
     /// True if the lobe is effectively a delta.
@@ -85,11 +83,7 @@ impl Ggx {
         if wh.z < 0.0 {
             wh = -wh;
         }
-        let t1 = if wh.z < 0.99999 {
-            Vec3::Z.cross(wh).normalize()
-        } else {
-            Vec3::X
-        };
+        let t1 = if wh.z < 0.99999 { Vec3::Z.cross(wh).normalize() } else { Vec3::X };
         let t2 = wh.cross(t1);
         // Uniform disk sample, warped towards the visible half-disk.
         let r = u.x.sqrt();
@@ -182,11 +176,7 @@ mod tests {
     fn fresnel_known_values() {
         assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
         assert_eq!(fresnel_dielectric(1.0, 1.0), 0.0);
-        assert_eq!(
-            fresnel_dielectric(-0.1, 1.5),
-            1.0,
-            "TIR from inside at grazing angle"
-        );
+        assert_eq!(fresnel_dielectric(-0.1, 1.5), 1.0, "TIR from inside at grazing angle");
         let (t, _) = refract(Vec3::new(0.6, 0.0, 0.8), Vec3::Z, 1.5).unwrap();
         // Snell: sinθt = 0.6 / 1.5.
         assert!((t.x + 0.4).abs() < 1e-6 && t.z < 0.0 && (t.length() - 1.0).abs() < 1e-6);

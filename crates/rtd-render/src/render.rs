@@ -39,12 +39,7 @@ impl RenderScene {
         let bvh = SceneBvh::build(&scene);
         let bvh_seconds = t.elapsed().as_secs_f64();
         let lights = LightSet::new(&scene);
-        RenderScene {
-            scene,
-            bvh,
-            lights,
-            bvh_seconds,
-        }
+        RenderScene { scene, bvh, lights, bvh_seconds }
     }
 }
 
@@ -68,14 +63,7 @@ pub struct RenderSettings {
 impl RenderSettings {
     /// Defaults for a `width`×`height` image: seed 0, 12 bounces, no clamp.
     pub fn new(width: u32, height: u32) -> Self {
-        RenderSettings {
-            width,
-            height,
-            seed: 0,
-            max_depth: 12,
-            clamp: None,
-            threads: None,
-        }
+        RenderSettings { width, height, seed: 0, max_depth: 12, clamp: None, threads: None }
     }
     /// Sets the seed.
     pub fn seed(mut self, seed: u64) -> Self {
@@ -100,33 +88,22 @@ impl RenderSettings {
 
     /// Checks the settings, naming the first problem.
     pub fn validate(&self) -> Result<(), RenderError> {
-        if self.width == 0
-            || self.height == 0
-            || self.width > MAX_RESOLUTION
-            || self.height > MAX_RESOLUTION
-        {
+        if self.width == 0 || self.height == 0 || self.width > MAX_RESOLUTION || self.height > MAX_RESOLUTION {
             return Err(RenderError::InvalidSettings(format!(
                 "resolution {}x{} is outside 1..={MAX_RESOLUTION} per side",
                 self.width, self.height
             )));
         }
         if self.max_depth > 1024 {
-            return Err(RenderError::InvalidSettings(format!(
-                "max depth {} is above 1024",
-                self.max_depth
-            )));
+            return Err(RenderError::InvalidSettings(format!("max depth {} is above 1024", self.max_depth)));
         }
         if let Some(c) = self.clamp {
             if !(c > 0.0 && c.is_finite()) {
-                return Err(RenderError::InvalidSettings(format!(
-                    "clamp {c} must be a positive finite number"
-                )));
+                return Err(RenderError::InvalidSettings(format!("clamp {c} must be a positive finite number")));
             }
         }
         if self.threads == Some(0) {
-            return Err(RenderError::InvalidSettings(
-                "threads must be at least 1".into(),
-            ));
+            return Err(RenderError::InvalidSettings("threads must be at least 1".into()));
         }
         Ok(())
     }
@@ -171,11 +148,7 @@ pub struct PathTracer<'a> {
 
 impl<'a> PathTracer<'a> {
     /// A path tracer; fails on invalid settings.
-    pub fn new(
-        scene: &'a RenderScene,
-        camera: Camera,
-        settings: RenderSettings,
-    ) -> Result<Self, RenderError> {
+    pub fn new(scene: &'a RenderScene, camera: Camera, settings: RenderSettings) -> Result<Self, RenderError> {
         settings.validate()?;
         let pool = match settings.threads {
             Some(n) => Some(
@@ -186,12 +159,7 @@ impl<'a> PathTracer<'a> {
             ),
             None => None,
         };
-        Ok(PathTracer {
-            scene,
-            camera,
-            settings,
-            pool,
-        })
+        Ok(PathTracer { scene, camera, settings, pool })
     }
 
     /// The settings in use.
@@ -267,14 +235,10 @@ impl<'a> PathTracer<'a> {
 
     fn check_film(&self, film: &Film, samples: u32) -> Result<(), RenderError> {
         if (film.width, film.height) != (self.settings.width, self.settings.height) {
-            return Err(RenderError::InvalidSettings(
-                "film size does not match the render settings".into(),
-            ));
+            return Err(RenderError::InvalidSettings("film size does not match the render settings".into()));
         }
         if samples == 0 || samples > MAX_SPP || film.spp as u64 + samples as u64 > MAX_SPP as u64 {
-            return Err(RenderError::InvalidSettings(format!(
-                "samples per pixel must be in 1..={MAX_SPP} in total"
-            )));
+            return Err(RenderError::InvalidSettings(format!("samples per pixel must be in 1..={MAX_SPP} in total")));
         }
         Ok(())
     }
@@ -313,10 +277,7 @@ impl<'a> PathTracer<'a> {
                     let mut sampler = Sampler::new(self.settings.seed, pixel, index);
                     // Importance-sample the tent pixel filter: every sample has weight 1.
                     let u = sampler.get_2d();
-                    let film_pos = Vec2::new(
-                        x as f32 + 0.5 + sample_tent(u.x),
-                        y as f32 + 0.5 + sample_tent(u.y),
-                    );
+                    let film_pos = Vec2::new(x as f32 + 0.5 + sample_tent(u.x), y as f32 + 0.5 + sample_tent(u.y));
                     let (o, d) = self.camera.ray(film_pos, w, h);
                     let r = integrator.trace(o, d, &mut sampler);
                     row_rays += r.rays as u64;
@@ -332,10 +293,7 @@ impl<'a> PathTracer<'a> {
                         }
                     }
                     beauty[x] += DVec3::from(l.as_dvec3());
-                    if r.aov.albedo.is_finite()
-                        && r.aov.normal.is_finite()
-                        && r.aov.depth.is_finite()
-                    {
+                    if r.aov.albedo.is_finite() && r.aov.normal.is_finite() && r.aov.depth.is_finite() {
                         albedo[x] += r.aov.albedo;
                         normal[x] += r.aov.normal;
                         depth[x] += r.aov.depth;

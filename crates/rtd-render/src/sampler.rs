@@ -79,11 +79,7 @@ impl Sampler {
     /// The sampler for sample `index` of pixel `pixel` under a global `seed`.
     #[inline]
     pub fn new(seed: u64, pixel: u64, index: u32) -> Self {
-        Sampler {
-            key: hash64(hash64(seed) ^ pixel),
-            index,
-            dimension: 0,
-        }
+        Sampler { key: hash64(hash64(seed) ^ pixel), index, dimension: 0 }
     }
 
     /// Per-dimension seed.
@@ -123,16 +119,11 @@ mod tests {
     fn sobol_dim1_is_a_02_sequence() {
         // The first 2^k points of dims (0,1) put exactly one point in each elementary interval of
         // area 2^-k; check k = 4 with 1×16, 2×8, 4×4, 8×2 and 16×1 grids.
-        let pts: Vec<(u32, u32)> = (0..16u32)
-            .map(|i| (i.reverse_bits() >> 28, sobol_dim1(i) >> 28))
-            .collect();
+        let pts: Vec<(u32, u32)> = (0..16u32).map(|i| (i.reverse_bits() >> 28, sobol_dim1(i) >> 28)).collect();
         for a in 0..=4 {
             let mut seen = std::collections::HashSet::new();
             for &(x, y) in &pts {
-                assert!(
-                    seen.insert((x >> (4 - a), y >> a)),
-                    "not stratified for split {a}"
-                );
+                assert!(seen.insert((x >> (4 - a), y >> a)), "not stratified for split {a}");
             }
         }
     }
@@ -151,13 +142,7 @@ mod tests {
         }
         // E[xy] = 1/4 for independent uniforms; stratification makes the error tiny.
         assert!((sum / n as f64 - 0.25).abs() < 2e-3);
-        assert_ne!(
-            Sampler::new(7, 3, 0).get_1d(),
-            Sampler::new(7, 4, 0).get_1d()
-        );
-        assert_ne!(
-            Sampler::new(7, 3, 0).get_1d(),
-            Sampler::new(8, 3, 0).get_1d()
-        );
+        assert_ne!(Sampler::new(7, 3, 0).get_1d(), Sampler::new(7, 4, 0).get_1d());
+        assert_ne!(Sampler::new(7, 3, 0).get_1d(), Sampler::new(8, 3, 0).get_1d());
     }
 }

@@ -35,11 +35,7 @@ impl Frame {
             return Self::from_normal(n);
         }
         let s = s / l;
-        Frame {
-            s,
-            t: n.cross(s),
-            n,
-        }
+        Frame { s, t: n.cross(s), n }
     }
 
     /// World to local.
@@ -62,11 +58,8 @@ pub fn sample_disk_concentric(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, PI / 4.0 * (o.y / o.x))
-    } else {
-        (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y))
-    };
+    let (r, theta) =
+        if o.x.abs() > o.y.abs() { (o.x, PI / 4.0 * (o.y / o.x)) } else { (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y)) };
     let (s, c) = theta.sin_cos();
     Vec2::new(r * c, r * s)
 }
@@ -143,15 +136,8 @@ impl Distribution1D {
     /// Builds the distribution; all-zero or non-finite weights fall back to uniform.
     pub fn new(weights: &[f32]) -> Self {
         let n = weights.len().max(1);
-        let func: Vec<f32> = (0..n)
-            .map(|i| {
-                weights
-                    .get(i)
-                    .copied()
-                    .filter(|w| w.is_finite() && *w > 0.0)
-                    .unwrap_or(0.0)
-            })
-            .collect();
+        let func: Vec<f32> =
+            (0..n).map(|i| weights.get(i).copied().filter(|w| w.is_finite() && *w > 0.0).unwrap_or(0.0)).collect();
         let mut cdf = Vec::with_capacity(n + 1);
         let mut acc = 0.0f64;
         cdf.push(0.0);
@@ -170,11 +156,7 @@ impl Distribution1D {
             }
         }
         cdf[n] = 1.0;
-        Distribution1D {
-            func,
-            cdf,
-            integral,
-        }
+        Distribution1D { func, cdf, integral }
     }
 
     /// Number of bins.
@@ -196,17 +178,9 @@ impl Distribution1D {
     /// Samples a bin: returns (bin, probability of that bin, u remapped to [0,1) within it).
     #[inline]
     pub fn sample_discrete(&self, u: f32) -> (usize, f32, f32) {
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .saturating_sub(1)
-            .min(self.len() - 1);
+        let i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(self.len() - 1);
         let p = self.pmf(i);
-        let remapped = if p > 0.0 {
-            ((u - self.cdf[i]) / p).clamp(0.0, 1.0 - f32::EPSILON)
-        } else {
-            0.0
-        };
+        let remapped = if p > 0.0 { ((u - self.cdf[i]) / p).clamp(0.0, 1.0 - f32::EPSILON) } else { 0.0 };
         (i, p, remapped)
     }
 
@@ -225,17 +199,11 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [
-            Vec3::Z,
-            Vec3::NEG_Z,
-            Vec3::new(0.3, -0.4, 0.866).normalize(),
-            Vec3::new(0.0, -1.0, 1e-7).normalize(),
-        ] {
+        for n in [Vec3::Z, Vec3::NEG_Z, Vec3::new(0.3, -0.4, 0.866).normalize(), Vec3::new(0.0, -1.0, 1e-7).normalize()]
+        {
             let f = Frame::from_normal(n);
             assert!((f.s.length() - 1.0).abs() < 1e-5 && (f.t.length() - 1.0).abs() < 1e-5);
-            assert!(
-                f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5
-            );
+            assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5);
             let v = Vec3::new(0.1, 0.2, 0.3);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
         }
@@ -252,9 +220,7 @@ mod tests {
     #[test]
     fn distribution_samples_proportionally() {
         let d = Distribution1D::new(&[1.0, 0.0, 3.0]);
-        assert!(
-            (d.pmf(0) - 0.25).abs() < 1e-6 && d.pmf(1) == 0.0 && (d.pmf(2) - 0.75).abs() < 1e-6
-        );
+        assert!((d.pmf(0) - 0.25).abs() < 1e-6 && d.pmf(1) == 0.0 && (d.pmf(2) - 0.75).abs() < 1e-6);
         assert_eq!(d.sample_discrete(0.2).0, 0);
         assert_eq!(d.sample_discrete(0.25).0, 2);
         assert_eq!(d.sample_discrete(0.999_999).0, 2);

@@ -45,15 +45,7 @@ impl Surface {
         if ns.dot(ng) < 0.0 {
             ns = -ns;
         }
-        Surface {
-            p,
-            p_error,
-            ng,
-            ns,
-            uv,
-            triangle: hit.triangle,
-            params,
-        }
+        Surface { p, p_error, ng, ns, uv, triangle: hit.triangle, params }
     }
 
     /// A ray origin offset off the surface towards direction `w`, far enough to escape the
@@ -87,10 +79,7 @@ pub fn offset_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
 fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, tn: Vec3) -> Option<Vec3> {
     let tangent4 = t.tangent[0] * b.x + t.tangent[1] * b.y + t.tangent[2] * b.z;
     let (tangent, sign) = if tangent4.truncate().length_squared() > 0.0 {
-        (
-            tangent4.truncate(),
-            if t.tangent[0].w < 0.0 { -1.0 } else { 1.0 },
-        )
+        (tangent4.truncate(), if t.tangent[0].w < 0.0 { -1.0 } else { 1.0 })
     } else {
         // No tangents in the file: derive dp/du from the UV parameterisation.
         let dp1 = t.p[1] - t.p[0];
@@ -104,11 +93,7 @@ fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, tn: Vec3) -> Opt
         let dpdu = (dp1 * duv2.y - dp2 * duv1.y) / det;
         let dpdv = (dp2 * duv1.x - dp1 * duv2.x) / det;
         // glTF's V runs down the image, so the bitangent is −dp/dv in its convention.
-        let sign = if ns.cross(dpdu).dot(-dpdv) < 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
+        let sign = if ns.cross(dpdu).dot(-dpdv) < 0.0 { -1.0 } else { 1.0 };
         (dpdu, sign)
     };
     let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();

@@ -47,38 +47,19 @@ impl Camera {
     /// A perspective camera at `from` looking at `at`, with +Y as the up hint.
     pub fn look_at(from: Vec3, at: Vec3, yfov_degrees: f32) -> Self {
         let forward = (at - from).normalize_or(Vec3::NEG_Z);
-        let projection = Projection::Perspective {
-            yfov: yfov_degrees.to_radians(),
-        };
+        let projection = Projection::Perspective { yfov: yfov_degrees.to_radians() };
         Self::oriented("look-at", from, forward, Vec3::Y, projection)
     }
 
-    fn oriented(
-        name: impl Into<String>,
-        position: Vec3,
-        forward: Vec3,
-        up_hint: Vec3,
-        projection: Projection,
-    ) -> Self {
+    fn oriented(name: impl Into<String>, position: Vec3, forward: Vec3, up_hint: Vec3, projection: Projection) -> Self {
         // Gram–Schmidt: right ⟂ forward, then up ⟂ both; fall back to another hint if parallel.
         let mut right = forward.cross(up_hint);
         if right.length_squared() < 1e-12 {
-            right = forward.cross(if forward.y.abs() < 0.9 {
-                Vec3::Y
-            } else {
-                Vec3::Z
-            });
+            right = forward.cross(if forward.y.abs() < 0.9 { Vec3::Y } else { Vec3::Z });
         }
         let right = right.normalize();
         let up = right.cross(forward).normalize();
-        Camera {
-            name: name.into(),
-            position,
-            right,
-            up,
-            forward,
-            projection,
-        }
+        Camera { name: name.into(), position, right, up, forward, projection }
     }
 
     /// A perspective camera that frames `bounds` from the front, slightly above.
@@ -130,13 +111,7 @@ impl Camera {
             }
             Projection::Orthographic { ymag } => (x / (ymag * aspect), y / ymag, z),
         };
-        Some((
-            Vec2::new(
-                (nx + 1.0) * 0.5 * width as f32,
-                (1.0 - ny) * 0.5 * height as f32,
-            ),
-            dist,
-        ))
+        Some((Vec2::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32), dist))
     }
 
     /// This camera with position and orthographic extent transformed by a uniform scale and offset.
@@ -160,9 +135,7 @@ mod tests {
         let (o, d) = cam.ray(Vec2::new(50.0, 25.0), 100, 50);
         assert_eq!(o, Vec3::new(1.0, 2.0, 3.0));
         assert!((d - Vec3::NEG_Z).length() < 1e-6);
-        let (film, dist) = cam
-            .project(o + cam.ray(Vec2::new(10.0, 40.0), 100, 50).1 * 5.0, 100, 50)
-            .unwrap();
+        let (film, dist) = cam.project(o + cam.ray(Vec2::new(10.0, 40.0), 100, 50).1 * 5.0, 100, 50).unwrap();
         assert!((film - Vec2::new(10.0, 40.0)).length() < 1e-3, "{film}");
         assert!((dist - 5.0).abs() < 1e-5);
     }

@@ -30,32 +30,18 @@ impl Environment {
             let v = match n.as_slice() {
                 [g] => Vec3::splat(*g),
                 [r, g, b] => Vec3::new(*r, *g, *b),
-                _ => {
-                    return Err(SceneError::new(
-                        Path::new(arg),
-                        "--env takes R,G,B or an .exr path",
-                    ))
-                }
+                _ => return Err(SceneError::new(Path::new(arg), "--env takes R,G,B or an .exr path")),
             };
             if !v.is_finite() || v.min_element() < 0.0 {
-                return Err(SceneError::new(
-                    Path::new(arg),
-                    "environment colour must be finite and non-negative",
-                ));
+                return Err(SceneError::new(Path::new(arg), "environment colour must be finite and non-negative"));
             }
             return Ok(Environment::Constant(v));
         }
         let path = Path::new(arg);
         let layers = rtd_image::read_exr(path).map_err(|e| SceneError::new(path, e))?;
-        let mut img = layers
-            .rgb("")
-            .ok_or_else(|| SceneError::new(path, "EXR has no R,G,B channels"))?;
+        let mut img = layers.rgb("").ok_or_else(|| SceneError::new(path, "EXR has no R,G,B channels"))?;
         for p in &mut img.pixels {
-            *p = if p.is_finite() {
-                p.max(Vec3::ZERO)
-            } else {
-                Vec3::ZERO
-            };
+            *p = if p.is_finite() { p.max(Vec3::ZERO) } else { Vec3::ZERO };
         }
         Ok(Environment::Map(img))
     }
@@ -108,12 +94,8 @@ mod tests {
 
     #[test]
     fn uv_direction_round_trip() {
-        for &d in &[
-            Vec3::X,
-            Vec3::NEG_Z,
-            Vec3::new(0.3, 0.5, 0.8).normalize(),
-            Vec3::new(-0.6, -0.7, 0.2).normalize(),
-        ] {
+        for &d in &[Vec3::X, Vec3::NEG_Z, Vec3::new(0.3, 0.5, 0.8).normalize(), Vec3::new(-0.6, -0.7, 0.2).normalize()]
+        {
             let back = Environment::uv_to_dir(Environment::dir_to_uv(d));
             assert!((back - d).length() < 1e-5, "{d} -> {back}");
         }
@@ -122,14 +104,8 @@ mod tests {
 
     #[test]
     fn parse_constant() {
-        assert_eq!(
-            Environment::parse("1,0.5,0").unwrap(),
-            Environment::Constant(Vec3::new(1.0, 0.5, 0.0))
-        );
-        assert_eq!(
-            Environment::parse("2").unwrap(),
-            Environment::Constant(Vec3::splat(2.0))
-        );
+        assert_eq!(Environment::parse("1,0.5,0").unwrap(), Environment::Constant(Vec3::new(1.0, 0.5, 0.0)));
+        assert_eq!(Environment::parse("2").unwrap(), Environment::Constant(Vec3::splat(2.0)));
         assert!(Environment::parse("1,-1,0").is_err());
         assert!(Environment::parse("missing.exr").is_err());
     }

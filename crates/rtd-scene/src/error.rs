@@ -14,9 +14,6 @@ impl SceneError {
     /// A new error for `path`.
     pub fn new(path: &Path, message: impl ToString) -> Self {
         let message = message.to_string().replace('\n', " ");
-        SceneError {
-            path: path.to_path_buf(),
-            message,
-        }
+        SceneError { path: path.to_path_buf(), message }
     }
 }

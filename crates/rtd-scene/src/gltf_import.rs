@@ -5,8 +5,7 @@ use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::image::Format;
 
 use crate::{
-    AlphaMode, Camera, Light, Material, Projection, Scene, SceneError, Texture, TextureRef,
-    Triangle, UvTransform, Wrap,
+    AlphaMode, Camera, Light, Material, Projection, Scene, SceneError, Texture, TextureRef, Triangle, UvTransform, Wrap,
 };
 
 /// glTF extensions rtd implements; a file that *requires* any other is rejected by name.
@@ -24,13 +23,8 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     let err = |m: String| SceneError::new(path, m);
     let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
     // Check required extensions before validation so the error can name the extension.
-    let raw = gltf::Gltf::from_slice_without_validation(&bytes)
-        .map_err(|e| err(format!("malformed glTF: {e}")))?;
-    if let Some(ext) = raw
-        .document
-        .extensions_required()
-        .find(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e))
-    {
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| err(format!("malformed glTF: {e}")))?;
+    if let Some(ext) = raw.document.extensions_required().find(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
         return Err(err(format!(
             "required extension {ext} is not supported (rtd supports: {})",
             SUPPORTED_GLTF_EXTENSIONS.join(", ")
@@ -39,25 +33,14 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice(&bytes).map_err(|e| err(format!("invalid glTF: {e}")))?;
     let base = path.parent();
-    let buffers = gltf::import_buffers(&document, base, blob)
-        .map_err(|e| err(format!("cannot load buffers: {e}")))?;
-    let images = gltf::import_images(&document, base, &buffers)
-        .map_err(|e| err(format!("cannot load images: {e}")))?;
+    let buffers = gltf::import_buffers(&document, base, blob).map_err(|e| err(format!("cannot load buffers: {e}")))?;
+    let images = gltf::import_images(&document, base, &buffers).map_err(|e| err(format!("cannot load images: {e}")))?;
 
     let mut scene = Scene::default();
-    for ext in document
-        .extensions_used()
-        .filter(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e))
-    {
-        scene
-            .warnings
-            .push(format!("ignoring unsupported optional extension {ext}"));
+    for ext in document.extensions_used().filter(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
+        scene.warnings.push(format!("ignoring unsupported optional extension {ext}"));
     }
-    let mut textures = TextureCache {
-        images: &images,
-        map: HashMap::new(),
-        warned_texcoord: false,
-    };
+    let mut textures = TextureCache { images: &images, map: HashMap::new(), warned_texcoord: false };
     for m in document.materials() {
         let mat = convert_material(&m, &mut textures, &mut scene);
         scene.materials.push(mat);
@@ -65,20 +48,14 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     let default_material = scene.materials.len() as u32;
     scene.materials.push(Material::default());
 
-    let gscene = document
-        .default_scene()
-        .or_else(|| document.scenes().next());
+    let gscene = document.default_scene().or_else(|| document.scenes().next());
     let mut skipped_primitives = 0usize;
     if let Some(gscene) = gscene {
-        let mut stack: Vec<(gltf::Node, Mat4)> =
-            gscene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        let mut stack: Vec<(gltf::Node, Mat4)> = gscene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
         while let Some((node, parent)) = stack.pop() {
             let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
             if !world.is_finite() {
-                scene.warnings.push(format!(
-                    "node {} has a non-finite transform; skipped",
-                    node.index()
-                ));
+                scene.warnings.push(format!("node {} has a non-finite transform; skipped", node.index()));
                 continue;
             }
             if let Some(mesh) = node.mesh() {
@@ -95,16 +72,10 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
                     .map(str::to_string)
                     .unwrap_or_else(|| format!("camera{}", scene.cameras.len()));
                 let projection = match cam.projection() {
-                    gltf::camera::Projection::Perspective(p) => {
-                        Projection::Perspective { yfov: p.yfov() }
-                    }
-                    gltf::camera::Projection::Orthographic(o) => Projection::Orthographic {
-                        ymag: o.ymag().abs(),
-                    },
+                    gltf::camera::Projection::Perspective(p) => Projection::Perspective { yfov: p.yfov() },
+                    gltf::camera::Projection::Orthographic(o) => Projection::Orthographic { ymag: o.ymag().abs() },
                 };
-                scene
-                    .cameras
-                    .push(Camera::from_matrix(name, world, projection));
+                scene.cameras.push(Camera::from_matrix(name, world, projection));
             }
             if let Some(light) = node.light() {
                 scene.lights.push(convert_light(&light, world));
@@ -116,9 +87,9 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     }
     scene.textures = textures.into_textures();
     if skipped_primitives > 0 {
-        scene.warnings.push(format!(
-            "skipped {skipped_primitives} primitives that are not triangles or have no positions"
-        ));
+        scene
+            .warnings
+            .push(format!("skipped {skipped_primitives} primitives that are not triangles or have no positions"));
     }
     scene.finish_load();
     Ok(scene)
@@ -135,10 +106,7 @@ impl TextureCache<'_> {
     fn get(&mut self, tex: gltf::Texture, srgb: bool) -> u32 {
         let next = self.map.len() as u32;
         let images = self.images;
-        let entry = self
-            .map
-            .entry((tex.index(), srgb))
-            .or_insert_with(|| (next, decode_texture(&tex, images, srgb)));
+        let entry = self.map.entry((tex.index(), srgb)).or_insert_with(|| (next, decode_texture(&tex, images, srgb)));
         entry.0
     }
 
@@ -149,38 +117,24 @@ impl TextureCache<'_> {
     }
 
     /// A texture slot with its optional `KHR_texture_transform`.
-    fn info(
-        &mut self,
-        info: Option<gltf::texture::Info>,
-        srgb: bool,
-        scene: &mut Scene,
-    ) -> Option<TextureRef> {
+    fn info(&mut self, info: Option<gltf::texture::Info>, srgb: bool, scene: &mut Scene) -> Option<TextureRef> {
         let info = info?;
         let mut tex_coord = info.tex_coord();
         let transform = info.texture_transform().map(|t| {
             if let Some(tc) = t.tex_coord() {
                 tex_coord = tc;
             }
-            UvTransform {
-                offset: Vec2::from(t.offset()),
-                rotation: t.rotation(),
-                scale: Vec2::from(t.scale()),
-            }
-            .matrix()
+            UvTransform { offset: Vec2::from(t.offset()), rotation: t.rotation(), scale: Vec2::from(t.scale()) }
+                .matrix()
         });
         self.warn_texcoord(tex_coord, scene);
-        Some(TextureRef {
-            texture: self.get(info.texture(), srgb),
-            transform,
-        })
+        Some(TextureRef { texture: self.get(info.texture(), srgb), transform })
     }
 
     fn warn_texcoord(&mut self, tex_coord: u32, scene: &mut Scene) {
         if tex_coord != 0 && !self.warned_texcoord {
             self.warned_texcoord = true;
-            scene.warnings.push(format!(
-                "a texture uses TEXCOORD_{tex_coord}; rtd reads TEXCOORD_0 only"
-            ));
+            scene.warnings.push(format!("a texture uses TEXCOORD_{tex_coord}; rtd reads TEXCOORD_0 only"));
         }
     }
 }
@@ -193,17 +147,13 @@ fn decode_texture(tex: &gltf::Texture, images: &[gltf::image::Data], srgb: bool)
         gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
         gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
     };
-    let nearest = matches!(
-        sampler.mag_filter(),
-        Some(gltf::texture::MagFilter::Nearest)
-    );
+    let nearest = matches!(sampler.mag_filter(), Some(gltf::texture::MagFilter::Nearest));
     let Some(data) = images.get(tex.source().index()) else {
         return Texture::constant(Vec4::ONE);
     };
     let px = &data.pixels;
     let u16_at = |i: usize| u16::from_le_bytes([px[2 * i], px[2 * i + 1]]) as f32 / 65535.0;
-    let f32_at =
-        |i: usize| f32::from_le_bytes([px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]]);
+    let f32_at = |i: usize| f32::from_le_bytes([px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]]);
     let n = data.width as usize * data.height as usize;
     let (channels, fetch): (usize, Box<dyn Fn(usize) -> f32>) = match data.format {
         Format::R8 => (1, Box::new(|i| px[i] as f32 / 255.0)),
@@ -217,10 +167,7 @@ fn decode_texture(tex: &gltf::Texture, images: &[gltf::image::Data], srgb: bool)
         Format::R32G32B32FLOAT => (3, Box::new(f32_at)),
         Format::R32G32B32A32FLOAT => (4, Box::new(f32_at)),
     };
-    let is_float = matches!(
-        data.format,
-        Format::R32G32B32FLOAT | Format::R32G32B32A32FLOAT
-    );
+    let is_float = matches!(data.format, Format::R32G32B32FLOAT | Format::R32G32B32A32FLOAT);
     let lin = |x: f32| {
         if srgb && !is_float {
             rtd_image::srgb_to_linear(x)
@@ -250,11 +197,7 @@ fn decode_texture(tex: &gltf::Texture, images: &[gltf::image::Data], srgb: bool)
     }
 }
 
-fn convert_material(
-    m: &gltf::Material,
-    textures: &mut TextureCache,
-    scene: &mut Scene,
-) -> Material {
+fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut Scene) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let strength = m.emissive_strength().unwrap_or(1.0);
     let normal_texture = m.normal_texture().map(|n| {
@@ -262,36 +205,17 @@ fn convert_material(
         let transform = n.extension_value("KHR_texture_transform").map(|v| {
             let pair = |k: &str, d: f32| {
                 let a = v.get(k).and_then(|x| x.as_array());
-                let f = |i: usize| {
-                    a.and_then(|a| a.get(i))
-                        .and_then(|x| x.as_f64())
-                        .map(|x| x as f32)
-                        .unwrap_or(d)
-                };
+                let f = |i: usize| a.and_then(|a| a.get(i)).and_then(|x| x.as_f64()).map(|x| x as f32).unwrap_or(d);
                 Vec2::new(f(0), f(1))
             };
             let rotation = v.get("rotation").and_then(|x| x.as_f64()).unwrap_or(0.0) as f32;
-            UvTransform {
-                offset: pair("offset", 0.0),
-                rotation,
-                scale: pair("scale", 1.0),
-            }
-            .matrix()
+            UvTransform { offset: pair("offset", 0.0), rotation, scale: pair("scale", 1.0) }.matrix()
         });
         textures.warn_texcoord(n.tex_coord(), scene);
-        (
-            TextureRef {
-                texture: textures.get(n.texture(), false),
-                transform,
-            },
-            n.scale(),
-        )
+        (TextureRef { texture: textures.get(n.texture(), false), transform }, n.scale())
     });
     let (transmission, transmission_texture) = match m.transmission() {
-        Some(t) => (
-            t.transmission_factor(),
-            textures.info(t.transmission_texture(), false, scene),
-        ),
+        Some(t) => (t.transmission_factor(), textures.info(t.transmission_texture(), false, scene)),
         None => (0.0, None),
     };
     let (specular, specular_texture, specular_color) = match m.specular() {
@@ -331,22 +255,11 @@ fn convert_material(
 fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light {
     let color = Vec3::from(light.color()) * light.intensity();
     let position = world.w_axis.truncate();
-    let direction = world
-        .transform_vector3(Vec3::NEG_Z)
-        .normalize_or(Vec3::NEG_Z);
+    let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
     match light.kind() {
-        gltf::khr_lights_punctual::Kind::Directional => Light::Directional {
-            direction,
-            irradiance: color,
-        },
-        gltf::khr_lights_punctual::Kind::Point => Light::Point {
-            position,
-            intensity: color,
-        },
-        gltf::khr_lights_punctual::Kind::Spot {
-            inner_cone_angle,
-            outer_cone_angle,
-        } => Light::Spot {
+        gltf::khr_lights_punctual::Kind::Directional => Light::Directional { direction, irradiance: color },
+        gltf::khr_lights_punctual::Kind::Point => Light::Point { position, intensity: color },
+        gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => Light::Spot {
             position,
             direction,
             intensity: color,
@@ -369,35 +282,21 @@ fn add_primitive(
     let Some(positions) = reader.read_positions() else {
         return false;
     };
-    let positions: Vec<Vec3> = positions
-        .map(|p| world.transform_point3(Vec3::from(p)))
-        .collect();
+    let positions: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
     let m3 = Mat3::from_mat4(world);
     let normal_matrix = m3.inverse().transpose();
-    let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| {
-        n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
-            .collect()
-    });
-    let tangents: Option<Vec<Vec4>> = reader.read_tangents().map(|t| {
-        t.map(|t| {
-            (m3 * Vec3::new(t[0], t[1], t[2]))
-                .normalize_or_zero()
-                .extend(t[3])
-        })
-        .collect()
-    });
-    let uvs: Option<Vec<Vec2>> = reader
-        .read_tex_coords(0)
-        .map(|t| t.into_f32().map(Vec2::from).collect());
+    let normals: Option<Vec<Vec3>> =
+        reader.read_normals().map(|n| n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero()).collect());
+    let tangents: Option<Vec<Vec4>> = reader
+        .read_tangents()
+        .map(|t| t.map(|t| (m3 * Vec3::new(t[0], t[1], t[2])).normalize_or_zero().extend(t[3])).collect());
+    let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
     let indices: Vec<u32> = match reader.read_indices() {
         Some(i) => i.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
     };
     let tris: Vec<[u32; 3]> = match prim.mode() {
-        Mode::Triangles => indices
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect(),
+        Mode::Triangles => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         // Strips alternate winding; fans share the first vertex.
         Mode::TriangleStrip => (2..indices.len())
             .map(|i| {
@@ -408,18 +307,12 @@ fn add_primitive(
                 }
             })
             .collect(),
-        Mode::TriangleFan => (2..indices.len())
-            .map(|i| [indices[0], indices[i - 1], indices[i]])
-            .collect(),
+        Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
         _ => return false,
     };
     // A mirroring transform flips winding; swap two vertices so front faces stay front.
     let mirrored = m3.determinant() < 0.0;
-    let material = prim
-        .material()
-        .index()
-        .map(|i| i as u32)
-        .unwrap_or(default_material);
+    let material = prim.material().index().map(|i| i as u32).unwrap_or(default_material);
     let n = positions.len();
     for mut t in tris {
         if t.iter().any(|&i| i as usize >= n) {
@@ -442,8 +335,5 @@ fn add_primitive(
 
 /// Vertex `i` of an optional attribute array (arrays shorter than the positions read as `default`).
 fn attribute<T: Copy>(values: &Option<Vec<T>>, i: u32, default: T) -> T {
-    values
-        .as_ref()
-        .and_then(|v| v.get(i as usize).copied())
-        .unwrap_or(default)
+    values.as_ref().and_then(|v| v.get(i as usize).copied()).unwrap_or(default)
 }

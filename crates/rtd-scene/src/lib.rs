@@ -30,16 +30,10 @@ use std::path::Path;
 
 /// Loads a scene, choosing the importer by extension (`.gltf`, `.glb`, `.obj`).
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("gltf") | Some("glb") => load_gltf(path),
         Some("obj") => load_obj(path),
-        _ => Err(SceneError::new(
-            path,
-            "unknown scene format (use .gltf, .glb or .obj)",
-        )),
+        _ => Err(SceneError::new(path, "unknown scene format (use .gltf, .glb or .obj)")),
     }
 }

@@ -210,11 +210,7 @@ impl Material {
             roughness: sat(roughness),
             emission: pos(emission),
             transmission: sat(transmission),
-            ior: if self.ior.is_finite() {
-                self.ior.max(1.0)
-            } else {
-                1.5
-            },
+            ior: if self.ior.is_finite() { self.ior.max(1.0) } else { 1.5 },
             specular: sat(specular),
             specular_color: pos(self.specular_color),
             tangent_normal,
@@ -229,11 +225,8 @@ mod tests {
     #[test]
     fn texture_transform_matches_spec_example() {
         // Rotation by 90°: the spec's matrix maps (1,0) to (cos, -sin) = (0,-1).
-        let t = UvTransform {
-            offset: Vec2::new(0.5, 0.0),
-            rotation: std::f32::consts::FRAC_PI_2,
-            scale: Vec2::splat(2.0),
-        };
+        let t =
+            UvTransform { offset: Vec2::new(0.5, 0.0), rotation: std::f32::consts::FRAC_PI_2, scale: Vec2::splat(2.0) };
         let p = t.matrix() * Vec3::new(1.0, 0.0, 1.0);
         assert!((p - Vec3::new(0.5, -2.0, 1.0)).length() < 1e-6, "{p}");
     }
@@ -244,10 +237,7 @@ mod tests {
         let m = Material {
             roughness: 0.8,
             metallic: 1.0,
-            metallic_roughness_texture: Some(TextureRef {
-                texture: 0,
-                transform: None,
-            }),
+            metallic_roughness_texture: Some(TextureRef { texture: 0, transform: None }),
             base_color: Vec4::new(2.0, 0.5, f32::NAN, 1.0),
             ior: 0.5,
             ..Material::default()

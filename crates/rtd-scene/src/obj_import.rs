@@ -10,13 +10,9 @@ use crate::{Material, Scene, SceneError, Texture, TextureRef, Triangle, Wrap};
 /// (GGX α = √(2/(Ns+2))); black `Kd` with non-zero `Ks` → a metal of colour `Ks`;
 /// `Ke` → emission; `illum` 4/6/7/9, `d` < 1 or `Tr` > 0 → glass with IOR `Ni`.
 pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
-    let opts = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
-    let (models, mtl) = tobj::load_obj(path, &opts)
-        .map_err(|e| SceneError::new(path, format!("cannot load OBJ: {e}")))?;
+    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let (models, mtl) =
+        tobj::load_obj(path, &opts).map_err(|e| SceneError::new(path, format!("cannot load OBJ: {e}")))?;
     let mut scene = Scene::default();
     let dir = path.parent().unwrap_or(Path::new("."));
     match mtl {
@@ -26,9 +22,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
                 scene.materials.push(mat);
             }
         }
-        Err(e) => scene.warnings.push(format!(
-            "materials not loaded ({e}); using the default material"
-        )),
+        Err(e) => scene.warnings.push(format!("materials not loaded ({e}); using the default material")),
     }
     let default_material = scene.materials.len() as u32;
     scene.materials.push(Material {
@@ -42,11 +36,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
         let mesh = &model.mesh;
         let pos = |i: u32| {
             let i = i as usize * 3;
-            Vec3::new(
-                mesh.positions[i],
-                mesh.positions[i + 1],
-                mesh.positions[i + 2],
-            )
+            Vec3::new(mesh.positions[i], mesh.positions[i + 1], mesh.positions[i + 2])
         };
         let nrm = |i: u32| {
             let i = i as usize * 3;
@@ -65,11 +55,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
                 Vec2::ZERO
             }
         };
-        let material = mesh
-            .material_id
-            .map(|m| m as u32)
-            .filter(|&m| m < default_material)
-            .unwrap_or(default_material);
+        let material = mesh.material_id.map(|m| m as u32).filter(|&m| m < default_material).unwrap_or(default_material);
         let nverts = (mesh.positions.len() / 3) as u32;
         for c in mesh.indices.chunks_exact(3) {
             let t = [c[0], c[1], c[2]];
@@ -91,10 +77,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
 }
 
 fn parse_vec3(s: Option<&String>) -> Option<Vec3> {
-    let v: Vec<f32> = s?
-        .split_whitespace()
-        .filter_map(|x| x.parse().ok())
-        .collect();
+    let v: Vec<f32> = s?.split_whitespace().filter_map(|x| x.parse().ok()).collect();
     match v.as_slice() {
         [g] => Some(Vec3::splat(*g)),
         [r, g, b, ..] => Some(Vec3::new(*r, *g, *b)),
@@ -107,29 +90,15 @@ fn convert_material(m: &tobj::Material, dir: &Path, scene: &mut Scene) -> Materi
     let ks = m.specular.map(Vec3::from).unwrap_or(Vec3::ZERO);
     let ns = m.shininess.unwrap_or(0.0).max(0.0);
     let ke = parse_vec3(m.unknown_param.get("Ke")).unwrap_or(Vec3::ZERO);
-    let tr = m
-        .unknown_param
-        .get("Tr")
-        .and_then(|s| s.trim().parse::<f32>().ok())
-        .unwrap_or(0.0);
+    let tr = m.unknown_param.get("Tr").and_then(|s| s.trim().parse::<f32>().ok()).unwrap_or(0.0);
     let d = m.dissolve.unwrap_or(1.0);
     let illum = m.illumination_model.unwrap_or(2);
     // Blinn-Phong exponent to GGX: α = √(2/(Ns+2)), perceptual roughness = √α.
-    let roughness = if ns > 0.0 {
-        (2.0 / (ns + 2.0)).sqrt().sqrt()
-    } else {
-        1.0
-    };
+    let roughness = if ns > 0.0 { (2.0 / (ns + 2.0)).sqrt().sqrt() } else { 1.0 };
     let is_glass = matches!(illum, 4 | 6 | 7 | 9) || d < 1.0 || tr > 0.0;
     let is_metal = !is_glass && kd.max_element() <= 0.0 && ks.max_element() > 0.0;
     let ks_max = ks.max_element();
-    let mut mat = Material {
-        name: m.name.clone(),
-        metallic: 0.0,
-        roughness,
-        emissive: ke,
-        ..Material::default()
-    };
+    let mut mat = Material { name: m.name.clone(), metallic: 0.0, roughness, emissive: ke, ..Material::default() };
     if is_glass {
         let tf = parse_vec3(m.unknown_param.get("Tf")).unwrap_or(Vec3::ONE);
         mat.base_color = tf.min(Vec3::ONE).extend(1.0);
@@ -152,16 +121,9 @@ fn convert_material(m: &tobj::Material, dir: &Path, scene: &mut Scene) -> Materi
         match load_texture(&file) {
             Ok(t) => {
                 scene.textures.push(t);
-                mat.base_color_texture = Some(TextureRef {
-                    texture: scene.textures.len() as u32 - 1,
-                    transform: None,
-                });
+                mat.base_color_texture = Some(TextureRef { texture: scene.textures.len() as u32 - 1, transform: None });
             }
-            Err(e) => scene.warnings.push(format!(
-                "material {}: texture {} not loaded: {e}",
-                m.name,
-                file.display()
-            )),
+            Err(e) => scene.warnings.push(format!("material {}: texture {} not loaded: {e}", m.name, file.display())),
         }
     }
     mat

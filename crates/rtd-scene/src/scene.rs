@@ -13,10 +13,7 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (min = +∞, max = −∞).
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3::INFINITY,
-        max: Vec3::NEG_INFINITY,
-    };
+    pub const EMPTY: Aabb = Aabb { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
 
     /// Grows the box to contain `p`.
     pub fn grow(&mut self, p: Vec3) {
@@ -116,11 +113,7 @@ impl Scene {
         let flat = c / len2.sqrt();
         for n in &mut t.n {
             let l = n.length();
-            *n = if l.is_finite() && l > 1e-12 {
-                *n / l
-            } else {
-                flat
-            };
+            *n = if l.is_finite() && l > 1e-12 { *n / l } else { flat };
         }
         for uv in &mut t.uv {
             if !uv.is_finite() {
@@ -137,16 +130,10 @@ impl Scene {
     /// Records the skipped-triangle counts as warnings; importers call this once at the end.
     pub(crate) fn finish_load(&mut self) {
         if self.skipped_nonfinite > 0 {
-            self.warnings.push(format!(
-                "skipped {} triangles with NaN/Inf vertices",
-                self.skipped_nonfinite
-            ));
+            self.warnings.push(format!("skipped {} triangles with NaN/Inf vertices", self.skipped_nonfinite));
         }
         if self.skipped_degenerate > 0 {
-            self.warnings.push(format!(
-                "skipped {} degenerate (zero-area) triangles",
-                self.skipped_degenerate
-            ));
+            self.warnings.push(format!("skipped {} degenerate (zero-area) triangles", self.skipped_degenerate));
         }
         if self.materials.is_empty() {
             self.materials.push(Material::default());
@@ -166,10 +153,7 @@ impl Scene {
 
     /// Number of triangles whose material emits.
     pub fn emissive_triangle_count(&self) -> usize {
-        self.triangles
-            .iter()
-            .filter(|t| self.materials[t.material as usize].is_emissive())
-            .count()
+        self.triangles.iter().filter(|t| self.materials[t.material as usize].is_emissive()).count()
     }
 
     /// The camera chosen by `--camera NAME|INDEX`, the first camera, or an automatic one that
@@ -178,43 +162,23 @@ impl Scene {
         match choice {
             Some(c) => {
                 if let Ok(i) = c.parse::<usize>() {
-                    return self
-                        .cameras
-                        .get(i)
-                        .cloned()
-                        .map(|c| (c, None))
-                        .ok_or_else(|| {
-                            format!(
-                                "camera index {i} out of range (scene has {} cameras)",
-                                self.cameras.len()
-                            )
-                        });
+                    return self.cameras.get(i).cloned().map(|c| (c, None)).ok_or_else(|| {
+                        format!("camera index {i} out of range (scene has {} cameras)", self.cameras.len())
+                    });
                 }
-                self.cameras
-                    .iter()
-                    .find(|cam| cam.name == c)
-                    .cloned()
-                    .map(|c| (c, None))
-                    .ok_or_else(|| {
-                        let names: Vec<&str> =
-                            self.cameras.iter().map(|c| c.name.as_str()).collect();
-                        format!(
-                            "no camera named '{c}' (cameras: {})",
-                            if names.is_empty() {
-                                "none".into()
-                            } else {
-                                names.join(", ")
-                            }
-                        )
-                    })
+                self.cameras.iter().find(|cam| cam.name == c).cloned().map(|c| (c, None)).ok_or_else(|| {
+                    let names: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
+                    format!(
+                        "no camera named '{c}' (cameras: {})",
+                        if names.is_empty() { "none".into() } else { names.join(", ") }
+                    )
+                })
             }
             None => match self.cameras.first() {
                 Some(c) => Ok((c.clone(), None)),
                 None => Ok((
                     Camera::framing(&self.bounds()),
-                    Some(
-                        "scene has no camera; using an automatic camera framing its bounds".into(),
-                    ),
+                    Some("scene has no camera; using an automatic camera framing its bounds".into()),
                 )),
             },
         }
@@ -233,18 +197,11 @@ impl Scene {
         s.cameras = s.cameras.iter().map(|c| c.scaled(scale, offset)).collect();
         for l in &mut s.lights {
             match l {
-                Light::Point {
-                    position,
-                    intensity,
-                } => {
+                Light::Point { position, intensity } => {
                     *position = *position * scale + offset;
                     *intensity *= scale * scale;
                 }
-                Light::Spot {
-                    position,
-                    intensity,
-                    ..
-                } => {
+                Light::Spot { position, intensity, .. } => {
                     *position = *position * scale + offset;
                     *intensity *= scale * scale;
                 }
@@ -260,13 +217,7 @@ mod tests {
     use super::*;
 
     fn tri(p: [Vec3; 3]) -> Triangle {
-        Triangle {
-            p,
-            n: [Vec3::ZERO; 3],
-            uv: [Vec2::ZERO; 3],
-            tangent: [Vec4::ZERO; 3],
-            material: 0,
-        }
+        Triangle { p, n: [Vec3::ZERO; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 }
     }
 
     #[test]
@@ -276,15 +227,8 @@ mod tests {
         assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::X * 2.0])));
         assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::splat(f32::NAN), Vec3::Y])));
         s.finish_load();
-        assert_eq!(
-            (s.triangles.len(), s.skipped_degenerate, s.skipped_nonfinite),
-            (1, 1, 1)
-        );
-        assert_eq!(
-            s.triangles[0].n[0],
-            Vec3::Z,
-            "missing normals become flat normals"
-        );
+        assert_eq!((s.triangles.len(), s.skipped_degenerate, s.skipped_nonfinite), (1, 1, 1));
+        assert_eq!(s.triangles[0].n[0], Vec3::Z, "missing normals become flat normals");
         assert_eq!(s.warnings.len(), 2);
     }
 }

@@ -50,14 +50,7 @@ fn wrap_index(i: i64, n: u32, wrap: Wrap) -> usize {
 impl Texture {
     /// A 1×1 texture of one value.
     pub fn constant(v: Vec4) -> Self {
-        Texture {
-            width: 1,
-            height: 1,
-            texels: vec![v],
-            wrap_u: Wrap::Repeat,
-            wrap_v: Wrap::Repeat,
-            nearest: true,
-        }
+        Texture { width: 1, height: 1, texels: vec![v], wrap_u: Wrap::Repeat, wrap_v: Wrap::Repeat, nearest: true }
     }
 
     #[inline]
@@ -87,10 +80,7 @@ impl Texture {
 
     /// Mean of all texels, used to estimate the power of textured emitters.
     pub fn mean(&self) -> Vec4 {
-        let sum = self
-            .texels
-            .iter()
-            .fold(glam::DVec4::ZERO, |a, t| a + t.as_dvec4());
+        let sum = self.texels.iter().fold(glam::DVec4::ZERO, |a, t| a + t.as_dvec4());
         (sum / self.texels.len().max(1) as f64).as_vec4()
     }
 }

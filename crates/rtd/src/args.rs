@@ -93,11 +93,7 @@ pub struct RenderArgs {
 fn parse_vec3(s: &str) -> Result<glam::Vec3, String> {
     let v: Vec<f32> = s
         .split(',')
-        .map(|x| {
-            x.trim()
-                .parse::<f32>()
-                .map_err(|_| format!("'{s}' is not x,y,z"))
-        })
+        .map(|x| x.trim().parse::<f32>().map_err(|_| format!("'{s}' is not x,y,z")))
         .collect::<Result<_, _>>()?;
     match v.as_slice() {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glam::Vec3::new(*x, *y, *z)),

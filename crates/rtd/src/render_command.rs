@@ -68,11 +68,7 @@ pub fn check_output(path: &Path) -> anyhow::Result<ImageFormat> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        bail!(
-            "{}: output directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
+        bail!("{}: output directory {} does not exist", path.display(), dir.display());
     }
     if path.is_dir() {
         bail!("{}: is a directory", path.display());
@@ -104,18 +100,11 @@ pub fn choose_camera(scene: &Scene, args: &RenderArgs) -> anyhow::Result<(Camera
         }
         return Ok((Camera::look_at(from, at, args.fov), None));
     }
-    scene
-        .select_camera(args.camera.as_deref())
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))
+    scene.select_camera(args.camera.as_deref()).map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))
 }
 
 /// Writes the film as EXR (all layers) or as a tonemapped 8-bit image.
-pub fn write_film(
-    path: &Path,
-    film: &Film,
-    exposure: f32,
-    tonemap: TonemapArg,
-) -> anyhow::Result<()> {
+pub fn write_film(path: &Path, film: &Film, exposure: f32, tonemap: TonemapArg) -> anyhow::Result<()> {
     match ImageFormat::from_path(path)? {
         ImageFormat::Exr => rtd_image::write_exr(path, &film.layers())?,
         _ => {
@@ -153,10 +142,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     }
     let prepared = RenderScene::new(scene);
     if prepared.lights.is_empty() {
-        eprintln!(
-            "rtd: warning: {}: scene has no lights and no --env; the image will be black",
-            args.scene.display()
-        );
+        eprintln!("rtd: warning: {}: scene has no lights and no --env; the image will be black", args.scene.display());
     }
     let settings = RenderSettings::new(args.width, args.height)
         .seed(args.seed)
@@ -189,15 +175,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         bail!("interrupted before the first pass finished; nothing written");
     }
     write_film(&args.output, &film, args.exposure, args.tonemap)?;
-    let report = make_report(
-        args,
-        &prepared,
-        &camera,
-        load_s,
-        &stats,
-        &film,
-        was_interrupted,
-    );
+    let report = make_report(args, &prepared, &camera, load_s, &stats, &film, was_interrupted);
     println!(
         "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}",
         report.spp,
@@ -222,11 +200,7 @@ fn check_report_path(path: &Path) -> anyhow::Result<()> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        bail!(
-            "{}: report directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
+        bail!("{}: report directory {} does not exist", path.display(), dir.display());
     }
     Ok(())
 }
@@ -235,10 +209,8 @@ fn check_report_path(path: &Path) -> anyhow::Result<()> {
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(value)?;
     rtd_image::write_atomic(path, |w| {
-        std::io::Write::write_all(w, text.as_bytes()).map_err(|e| rtd_image::ImageError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        })
+        std::io::Write::write_all(w, text.as_bytes())
+            .map_err(|e| rtd_image::ImageError::Io { path: path.to_path_buf(), source: e })
     })?;
     Ok(())
 }
@@ -287,23 +259,14 @@ struct TimedObserver {
 }
 
 impl TimedObserver {
-    fn new(
-        secs: f64,
-        quiet: bool,
-        interrupted: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    ) -> Self {
-        TimedObserver {
-            bar: bar((secs * 1000.0) as u64, "render", quiet),
-            start: Instant::now(),
-            interrupted,
-        }
+    fn new(secs: f64, quiet: bool, interrupted: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Self {
+        TimedObserver { bar: bar((secs * 1000.0) as u64, "render", quiet), start: Instant::now(), interrupted }
     }
 }
 
 impl rtd_render::RenderObserver for TimedObserver {
     fn rows_done(&self, _rows: u64) {
-        self.bar
-            .set_position(self.start.elapsed().as_millis() as u64);
+        self.bar.set_position(self.start.elapsed().as_millis() as u64);
     }
     fn cancelled(&self) -> bool {
         self.interrupted.load(std::sync::atomic::Ordering::SeqCst)
