@@ -4,6 +4,12 @@
 //! The triangle test is Woop, Benthin & Wald's watertight algorithm (JCGT 2013), which never
 //! lets a ray slip between two triangles sharing an edge. Alpha-masked triangles are tested
 //! against their cut-out in the traversal callback, so cut-outs also let shadow rays through.
+//!
+//! Scale: obvhs culls every node whose interval ends before t = 1e-4 (an absolute epsilon), which
+//! would drop geometry near the ray origin in small scenes. The BVH is therefore built on
+//! vertices scaled by a power of two `k` that brings the scene's coordinates to about 1e4, and
+//! rays enter traversal as (k·origin, unit direction, k·t). Power-of-two scaling is exact, so
+//! the triangle test still runs on the original world-space vertices and t values.
 
 use std::time::Duration;
 
@@ -100,6 +106,8 @@ impl RayShear {
 /// The scene's triangles in a compressed wide BVH, ready for closest-hit and occlusion queries.
 pub struct SceneBvh {
     bvh: CwBvh,
+    /// Power-of-two scale from world space to BVH space.
+    k: f32,
     /// Vertices in BVH slot order.
     verts: Vec<[Vec3A; 3]>,
     /// Scene triangle index of each slot.
@@ -118,9 +126,21 @@ impl SceneBvh {
             .map(|t| BvhTriangle { v0: t.p[0].into(), v1: t.p[1].into(), v2: t.p[2].into() })
             .collect();
         if tris.is_empty() {
-            return SceneBvh { bvh: CwBvh::default(), verts: vec![], slot_tri: vec![], mask: vec![], uvs: vec![] };
+            return SceneBvh {
+                bvh: CwBvh::default(),
+                k: 1.0,
+                verts: vec![],
+                slot_tri: vec![],
+                mask: vec![],
+                uvs: vec![],
+            };
         }
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let bounds = scene.bounds();
+        let max_abs = bounds.min.abs().max(bounds.max.abs()).max_element().max(f32::MIN_POSITIVE);
+        let k = (2f32).powi((1e4f32 / max_abs).log2().round().clamp(-100.0, 100.0) as i32);
+        let scaled: Vec<BvhTriangle> =
+            tris.iter().map(|t| BvhTriangle { v0: t.v0 * k, v1: t.v1 * k, v2: t.v2 * k }).collect();
+        let bvh = build_cwbvh_from_tris(&scaled, BvhBuildParams::medium_build(), &mut Duration::default());
         let slot_tri: Vec<u32> = bvh.primitive_indices.clone();
         let verts = slot_tri.iter().map(|&i| [tris[i as usize].v0, tris[i as usize].v1, tris[i as usize].v2]).collect();
         let mask = slot_tri
@@ -134,7 +154,7 @@ impl SceneBvh {
             })
             .collect();
         let uvs = slot_tri.iter().map(|&i| scene.triangles[i as usize].uv).collect();
-        SceneBvh { bvh, verts, slot_tri, mask, uvs }
+        SceneBvh { bvh, k, verts, slot_tri, mask, uvs }
     }
 
     /// Number of triangles in the BVH.
@@ -160,21 +180,30 @@ impl SceneBvh {
         }
     }
 
-    /// The closest hit along `origin + t·dir` for t in (0, tmax), or None.
-    /// `dir` need not be normalised; non-finite input never hits.
+    /// The traversal ray in BVH space, or None for unusable input.
     #[inline]
-    pub fn intersect(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        if self.is_empty() || !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO {
+    fn bvh_ray(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<BvhRay> {
+        if self.is_empty() || !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO || tmax.is_nan() {
             return None;
         }
+        let o = origin * self.k;
+        o.is_finite().then(|| BvhRay::new(o.into(), dir.into(), 0.0, tmax * self.k))
+    }
+
+    /// The closest hit along `origin + t·dir` for t in (0, tmax), or None.
+    /// `dir` should be unit length (t is then a distance); non-finite input never hits.
+    #[inline]
+    pub fn intersect(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        let ray = self.bvh_ray(origin, dir, tmax)?;
         let shear = RayShear::new(origin, dir);
-        let ray = BvhRay::new(origin.into(), dir.into(), 0.0, tmax);
+        let (k, inv_k) = (self.k, 1.0 / self.k);
         let mut hit = RayHit::none();
-        let found =
-            self.bvh.ray_traverse(ray, &mut hit, |r, slot| match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
-                Some((t, b)) if !self.cut_away(slot, b, scene) => t,
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| {
+            match shear.intersect(&self.verts[slot], r.tmin * inv_k, r.tmax * inv_k) {
+                Some((t, b)) if !self.cut_away(slot, b, scene) => t * k,
                 _ => f32::INFINITY,
-            });
+            }
+        });
         if !found {
             return None;
         }
@@ -182,20 +211,20 @@ impl SceneBvh {
         let slot = hit.primitive_id as usize;
         let bary =
             shear.intersect(&self.verts[slot], 0.0, f32::INFINITY).map(|(_, b)| b).unwrap_or(Vec3::splat(1.0 / 3.0));
-        Some(Hit { triangle: self.slot_tri[slot], t: hit.t, bary })
+        Some(Hit { triangle: self.slot_tri[slot], t: hit.t * inv_k, bary })
     }
 
-    /// True if anything blocks `origin + t·dir` for t in (0, tmax).
+    /// True if anything blocks `origin + t·dir` for t in (0, tmax); `dir` should be unit length.
     #[inline]
     pub fn occluded(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        if self.is_empty() || !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO {
-            return false;
-        }
+        let Some(ray) = self.bvh_ray(origin, dir, tmax) else { return false };
         let shear = RayShear::new(origin, dir);
-        let ray = BvhRay::new(origin.into(), dir.into(), 0.0, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, slot| match shear.intersect(&self.verts[slot], r.tmin, r.tmax) {
-            Some((t, b)) if !self.cut_away(slot, b, scene) => t,
-            _ => f32::INFINITY,
+        let (k, inv_k) = (self.k, 1.0 / self.k);
+        !self.bvh.ray_traverse_miss(ray, |r, slot| {
+            match shear.intersect(&self.verts[slot], r.tmin * inv_k, r.tmax * inv_k) {
+                Some((t, b)) if !self.cut_away(slot, b, scene) => t * k,
+                _ => f32::INFINITY,
+            }
         })
     }
 }
@@ -238,13 +267,28 @@ mod tests {
     fn barycentrics_and_occlusion() {
         let s = quad_scene();
         let bvh = SceneBvh::build(&s);
-        let h = bvh.intersect(&s, Vec3::new(0.75, 0.25, 2.0), Vec3::NEG_Z * 2.0, f32::INFINITY).unwrap();
+        let h = bvh.intersect(&s, Vec3::new(0.75, 0.25, 2.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
         assert_eq!(h.triangle, 0);
-        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!((h.t - 2.0).abs() < 1e-6);
         let p = s.triangles[0].p[0] * h.bary.x + s.triangles[0].p[1] * h.bary.y + s.triangles[0].p[2] * h.bary.z;
         assert!((p - Vec3::new(0.75, 0.25, 0.0)).length() < 1e-6);
         assert!(bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::NEG_Z, 2.0));
         assert!(!bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::NEG_Z, 0.5));
         assert!(!bvh.occluded(&s, Vec3::new(0.5, 0.2, 1.0), Vec3::new(f32::NAN, 0.0, 0.0), 2.0));
+    }
+
+    /// obvhs culls nodes closer than t = 1e-4; after rescaling, a tiny scene keeps its near hits.
+    #[test]
+    fn tiny_scenes_keep_nearby_geometry() {
+        let mut s = Scene::default();
+        let tri =
+            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 };
+        let e = 1e-6;
+        s.push_triangle(tri([Vec3::ZERO, Vec3::X * e, Vec3::Y * e]));
+        s.materials.push(Default::default());
+        let bvh = SceneBvh::build(&s);
+        let h = bvh.intersect(&s, Vec3::new(0.2 * e, 0.2 * e, 0.5 * e), Vec3::NEG_Z, f32::INFINITY);
+        assert!((h.expect("near hit culled").t - 0.5 * e).abs() < 1e-12);
+        assert!(bvh.occluded(&s, Vec3::new(0.2 * e, 0.2 * e, 0.5 * e), Vec3::NEG_Z, 1.0));
     }
 }

@@ -126,7 +126,10 @@ impl Integrator<'_> {
                             let from = s.spawn_origin(ls.wi);
                             let blocked = match ls.point {
                                 // Stop the shadow ray just short of the light point.
-                                Some(q) => bvh.occluded(scene, from, q - from, 1.0 - 1e-4),
+                                Some(q) => {
+                                    let (dir, dist) = (q - from).normalize_and_length();
+                                    bvh.occluded(scene, from, dir, dist * (1.0 - 1e-4))
+                                }
                                 None => bvh.occluded(scene, from, ls.wi, f32::INFINITY),
                             };
                             if !blocked {

@@ -1,0 +1,81 @@
+//! Scene builders shared by the integration tests.
+#![allow(dead_code)]
+
+use glam::{Vec2, Vec3, Vec4};
+use rtd::render::{Film, PathTracer, RenderScene, RenderSettings};
+use rtd::scene::{Camera, Environment, Material, Scene, Triangle};
+
+/// A material with the given base colour, roughness, metallic and transmission.
+pub fn material(color: Vec3, roughness: f32, metallic: f32, transmission: f32) -> Material {
+    Material { base_color: color.extend(1.0), roughness, metallic, transmission, ..Material::default() }
+}
+
+/// Adds a triangle with flat normals.
+pub fn tri(scene: &mut Scene, p: [Vec3; 3], material: u32) {
+    let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+    scene.push_triangle(Triangle {
+        p,
+        n: [n; 3],
+        uv: [Vec2::ZERO, Vec2::X, Vec2::ONE],
+        tangent: [Vec4::ZERO; 3],
+        material,
+    });
+}
+
+/// Adds a quad a-b-c-d (counter-clockwise seen from its front).
+pub fn quad(scene: &mut Scene, a: Vec3, b: Vec3, c: Vec3, d: Vec3, material: u32) {
+    tri(scene, [a, b, c], material);
+    tri(scene, [a, c, d], material);
+}
+
+/// Adds a UV sphere with smooth normals facing outwards.
+pub fn sphere(scene: &mut Scene, center: Vec3, r: f32, material: u32, nu: u32, nv: u32) {
+    let pt = |i: u32, j: u32| {
+        let th = std::f32::consts::PI * j as f32 / nv as f32;
+        let ph = std::f32::consts::TAU * i as f32 / nu as f32;
+        Vec3::new(th.sin() * ph.cos(), th.cos(), -th.sin() * ph.sin())
+    };
+    for j in 0..nv {
+        for i in 0..nu {
+            let (a, b, c, d) = (pt(i, j), pt(i, j + 1), pt(i + 1, j + 1), pt(i + 1, j));
+            for t in [[a, b, c], [a, c, d]] {
+                scene.push_triangle(Triangle {
+                    p: t.map(|n| center + n * r),
+                    n: t,
+                    uv: [Vec2::ZERO; 3],
+                    tangent: [Vec4::ZERO; 3],
+                    material,
+                });
+            }
+        }
+    }
+}
+
+/// The bundled Cornell box.
+pub fn cornell() -> Scene {
+    rtd::scene::load_scene(&repo_path("scenes/cornell-box.gltf")).expect("bundled Cornell box loads")
+}
+
+/// A path relative to the repository root.
+pub fn repo_path(p: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+/// Renders `spp` samples of `scene` through `camera`.
+pub fn render(scene: Scene, camera: Camera, settings: RenderSettings, spp: u32) -> Film {
+    let prepared = RenderScene::new(scene);
+    let tracer = PathTracer::new(&prepared, camera, settings).unwrap();
+    let mut film = tracer.film();
+    tracer.render(&mut film, spp).unwrap();
+    film
+}
+
+/// A scene with only a constant environment.
+pub fn furnace(env: f32) -> Scene {
+    Scene { environment: Environment::Constant(Vec3::splat(env)), ..Scene::default() }
+}
+
+/// Mean of a set of pixels' luminance-free RGB average.
+pub fn mean(pixels: &[Vec3]) -> f64 {
+    pixels.iter().map(|p| (p.x + p.y + p.z) as f64 / 3.0).sum::<f64>() / pixels.len().max(1) as f64
+}
