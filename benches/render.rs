@@ -1,1 +1,113 @@
-fn main() {}
+//! Criterion benchmarks: BVH build, raw traversal rays/s, and full-render paths/s on the bundled
+//! scenes. After the criterion groups, one run measures the integrator's rays/s against raw
+//! closest-hit traversal on the same scene, so the integrator's overhead is visible as a ratio.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, Criterion, Throughput};
+use glam::{Vec2, Vec3};
+use rtd::render::{PathTracer, RenderScene, RenderSettings, Sampler, SceneBvh};
+use rtd::scene::{load_scene, Scene};
+
+const SCENES: [&str; 4] = ["cornell-box", "glass-and-metals", "textured-interior", "small-lights"];
+
+fn scene(name: &str) -> Scene {
+    load_scene(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.gltf"))).unwrap()
+}
+
+/// Rays from the camera through random film points, as (origin, direction).
+fn camera_rays(s: &Scene, n: u32) -> Vec<(Vec3, Vec3)> {
+    let cam = s.select_camera(None).unwrap().0;
+    (0..n)
+        .map(|i| {
+            let u = Sampler::new(1, 0, i).get_2d();
+            cam.ray(u * Vec2::splat(256.0), 256, 256)
+        })
+        .collect()
+}
+
+fn bvh_build(c: &mut Criterion) {
+    let mut g = c.benchmark_group("bvh_build");
+    for name in SCENES {
+        let s = scene(name);
+        g.throughput(Throughput::Elements(s.triangles.len() as u64));
+        g.bench_function(name, |b| b.iter(|| black_box(SceneBvh::build(&s))));
+    }
+    g.finish();
+}
+
+fn traversal(c: &mut Criterion) {
+    let mut g = c.benchmark_group("traversal_primary");
+    for name in SCENES {
+        let s = scene(name);
+        let bvh = SceneBvh::build(&s);
+        let rays = camera_rays(&s, 4096);
+        g.throughput(Throughput::Elements(rays.len() as u64));
+        g.bench_function(name, |b| {
+            b.iter(|| rays.iter().filter(|(o, d)| bvh.intersect(&s, *o, *d, f32::INFINITY).is_some()).count())
+        });
+    }
+    g.finish();
+}
+
+fn render(c: &mut Criterion) {
+    let mut g = c.benchmark_group("render_1spp_64x64");
+    g.sample_size(10);
+    for name in SCENES {
+        let s = scene(name);
+        let cam = s.select_camera(None).unwrap().0;
+        let prepared = RenderScene::new(s);
+        let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(64, 64)).unwrap();
+        g.throughput(Throughput::Elements(64 * 64));
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let mut film = tracer.film();
+                tracer.render(&mut film, 1).unwrap();
+                film
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bvh_build, traversal, render);
+
+/// Integrator rays/s against raw primary-ray traversal rays/s on the Cornell box, one run.
+fn overhead_ratio(seconds: f64) {
+    let s = scene("cornell-box");
+    let cam = s.select_camera(None).unwrap().0;
+    let prepared = RenderScene::new(s.clone());
+    let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(256, 256)).unwrap();
+    let mut film = tracer.film();
+    let stats = tracer.render_for(&mut film, Duration::from_secs_f64(seconds), &rtd::render::Silent).unwrap();
+    let integrator = stats.rays as f64 / stats.seconds;
+    let rays = camera_rays(&s, 1 << 16);
+    let bvh = &prepared.bvh;
+    let t = Instant::now();
+    let mut n = 0u64;
+    // Raw traversal on all cores, like the integrator.
+    use rayon::prelude::*;
+    while t.elapsed().as_secs_f64() < seconds {
+        let hits = rays.par_iter().filter(|(o, d)| bvh.intersect(&s, *o, *d, f32::INFINITY).is_some()).count();
+        black_box(hits);
+        n += rays.len() as u64;
+    }
+    let raw = n as f64 / t.elapsed().as_secs_f64();
+    println!(
+        "cornell-box 256x256: integrator {:.2} M rays/s ({:.3} M paths/s), raw primary traversal {:.2} M rays/s, ratio {:.2}",
+        integrator / 1e6,
+        stats.paths as f64 / stats.seconds / 1e6,
+        raw / 1e6,
+        integrator / raw
+    );
+}
+
+fn main() {
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+    // In `cargo test` mode criterion runs each benchmark once; keep the ratio run short there too.
+    let quick = std::env::args().any(|a| a == "--test") || !std::env::args().any(|a| a == "--bench");
+    overhead_ratio(if quick { 0.2 } else { 3.0 });
+}

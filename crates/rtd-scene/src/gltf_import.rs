@@ -52,6 +52,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     let mut skipped_primitives = 0usize;
     if let Some(gscene) = gscene {
         let mut stack: Vec<(gltf::Node, Mat4)> = gscene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        stack.reverse();
         while let Some((node, parent)) = stack.pop() {
             let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
             if !world.is_finite() {
@@ -80,7 +81,9 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
             if let Some(light) = node.light() {
                 scene.lights.push(convert_light(&light, world));
             }
-            for child in node.children() {
+            // Push children in reverse so that they pop in file order (depth-first, node order).
+            let children: Vec<gltf::Node> = node.children().collect();
+            for child in children.into_iter().rev() {
                 stack.push((child, world));
             }
         }

@@ -89,7 +89,7 @@ fn convert_material(m: &tobj::Material, dir: &Path, scene: &mut Scene) -> Materi
     let kd = m.diffuse.map(Vec3::from).unwrap_or(Vec3::splat(0.8));
     let ks = m.specular.map(Vec3::from).unwrap_or(Vec3::ZERO);
     let ns = m.shininess.unwrap_or(0.0).max(0.0);
-    let ke = parse_vec3(m.unknown_param.get("Ke")).unwrap_or(Vec3::ZERO);
+    let ke = m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO);
     let tr = m.unknown_param.get("Tr").and_then(|s| s.trim().parse::<f32>().ok()).unwrap_or(0.0);
     let d = m.dissolve.unwrap_or(1.0);
     let illum = m.illumination_model.unwrap_or(2);

@@ -156,8 +156,9 @@ impl Scene {
         self.triangles.iter().filter(|t| self.materials[t.material as usize].is_emissive()).count()
     }
 
-    /// The camera chosen by `--camera NAME|INDEX`, the first camera, or an automatic one that
-    /// frames the scene (with a warning). Errors name the cameras that exist.
+    /// The camera chosen by `--camera NAME|INDEX` (index in depth-first node order), else the first
+    /// perspective camera, else the first camera, else an automatic one that frames the scene
+    /// (with a warning). Errors name the cameras that exist.
     pub fn select_camera(&self, choice: Option<&str>) -> Result<(Camera, Option<String>), String> {
         match choice {
             Some(c) => {
@@ -174,7 +175,12 @@ impl Scene {
                     )
                 })
             }
-            None => match self.cameras.first() {
+            None => match self
+                .cameras
+                .iter()
+                .find(|c| matches!(c.projection, crate::Projection::Perspective { .. }))
+                .or(self.cameras.first())
+            {
                 Some(c) => Ok((c.clone(), None)),
                 None => Ok((
                     Camera::framing(&self.bounds()),

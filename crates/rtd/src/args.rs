@@ -41,7 +41,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=rtd_render::MAX_SPP as i64), conflicts_with = "time")]
     pub spp: Option<u32>,
     /// Render whole 1-spp passes until this many seconds are spent.
-    #[arg(long, value_parser = parse_seconds)]
+    #[arg(long, value_parser = parse_seconds, allow_hyphen_values = true)]
     pub time: Option<f64>,
     /// Image width in pixels.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_render::MAX_RESOLUTION as i64))]
@@ -74,7 +74,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 45.0, value_parser = parse_fov)]
     pub fov: f32,
     /// Clamp each sample's largest channel to this value (biased; off by default).
-    #[arg(long, value_parser = parse_positive)]
+    #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]
     pub clamp: Option<f32>,
     /// Exposure in stops for 8-bit outputs.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]

@@ -1,0 +1,196 @@
+//! The `rtd` binary end to end: outputs, reports and every bad-input case.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rtd(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtd")).args(args).output().expect("run rtd")
+}
+
+fn cornell() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf").display().to_string()
+}
+
+/// Asserts a clean failure: non-zero exit, one stderr line mentioning `needle`, no panic.
+fn assert_fails(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, got success; stderr: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
+    assert!(lines[0].starts_with("rtd: error: "), "{err}");
+    assert!(err.contains(needle), "error should mention '{needle}': {err}");
+}
+
+fn files_in(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect()
+}
+
+#[test]
+fn renders_exr_with_all_layers_and_a_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c.exr");
+    let report = dir.path().join("r.json");
+    let o = rtd(&[
+        "render",
+        &cornell(),
+        "-o",
+        out.to_str().unwrap(),
+        "--spp",
+        "2",
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--report",
+        report.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("paths/s") && stdout.contains("rays/s"), "{stdout}");
+    let layers = rtd::image::read_exr(&out).unwrap();
+    assert_eq!((layers.width, layers.height), (24, 16));
+    for ch in ["R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z"] {
+        assert!(layers.get(ch).is_some(), "missing channel {ch}");
+    }
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in [
+        "load_s",
+        "bvh_s",
+        "render_s",
+        "spp",
+        "paths_per_s",
+        "rays_per_s",
+        "nonfinite_samples",
+        "triangles",
+        "emissive_triangles",
+    ] {
+        assert!(r.get(key).is_some(), "report lacks {key}");
+    }
+    assert_eq!(r["spp"], 2);
+    assert_eq!(r["triangles"], 32);
+    assert_eq!(r["emissive_triangles"], 2);
+    // Only the two outputs: no temporary files left behind.
+    assert_eq!(files_in(dir.path()).len(), 2);
+}
+
+#[test]
+fn same_command_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, threads: &str| {
+        let p = dir.path().join(name);
+        let o = rtd(&[
+            "render",
+            &cornell(),
+            "-o",
+            p.to_str().unwrap(),
+            "--spp",
+            "2",
+            "--width",
+            "20",
+            "--height",
+            "20",
+            "--threads",
+            threads,
+            "-q",
+        ]);
+        assert!(o.status.success());
+        std::fs::read(p).unwrap()
+    };
+    assert_eq!(run("a.png", "1"), run("b.png", "2"));
+}
+
+#[test]
+fn png_jpeg_and_time_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, extra) in
+        [("a.png", vec!["--tonemap", "aces", "--exposure", "-1"]), ("b.jpg", vec![]), ("c.jpeg", vec!["--time", "0.2"])]
+    {
+        let p = dir.path().join(name);
+        let c = cornell();
+        let mut args = vec!["render", &c, "-o", p.to_str().unwrap(), "--width", "16", "--height", "16", "-q"];
+        args.extend(extra.iter());
+        let o = rtd(&args);
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(rtd::image::read_ldr(&p).is_ok(), "{name} unreadable");
+    }
+}
+
+#[test]
+fn bad_arguments_fail_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let o = out.to_str().unwrap();
+    let c = cornell();
+    assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "0"]), "spp");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--width", "0"]), "width");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--height", "100000"]), "height");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--time", "-1"]), "time");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "4", "--time", "1"]), "time");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--max-depth", "0"]), "max-depth");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--camera", "nope"]), "nope");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--env", "1,2"]), "--env");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--env", "missing-sky.exr"]), "missing-sky.exr");
+    assert_fails(&rtd(&["render", &c, "-o", dir.path().join("o.tiff").to_str().unwrap()]), "o.tiff");
+    assert_fails(&rtd(&["render", &c, "-o", "/nonexistent-dir/o.png"]), "/nonexistent-dir/o.png");
+    assert_fails(&rtd(&["render", &c, "-o", dir.path().to_str().unwrap()]), "");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--report", "/nonexistent-dir/r.json"]), "r.json");
+    assert_fails(&rtd(&["frobnicate"]), "frobnicate");
+    assert!(files_in(dir.path()).is_empty(), "a failed command left files: {:?}", files_in(dir.path()));
+}
+
+#[test]
+fn bad_scenes_fail_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let o = out.to_str().unwrap();
+    let scene = |name: &str, body: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, body).unwrap();
+        p.display().to_string()
+    };
+    assert_fails(&rtd(&["render", dir.path().join("missing.gltf").to_str().unwrap(), "-o", o]), "missing.gltf");
+    assert_fails(&rtd(&["render", &scene("broken.gltf", "{\"asset\": "), "-o", o]), "broken.gltf");
+    assert_fails(&rtd(&["render", &scene("broken.glb", "glTF garbage"), "-o", o]), "broken.glb");
+    let draco = r#"{"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]}"#;
+    assert_fails(&rtd(&["render", &scene("draco.gltf", draco), "-o", o]), "KHR_draco_mesh_compression");
+    let meshopt = r#"{"asset":{"version":"2.0"},"extensionsUsed":["EXT_meshopt_compression"],"extensionsRequired":["EXT_meshopt_compression"]}"#;
+    assert_fails(&rtd(&["render", &scene("meshopt.gltf", meshopt), "-o", o]), "EXT_meshopt_compression");
+    assert_fails(&rtd(&["render", &scene("bad.obj", "v 0 0 0\nf 1 2 banana\n"), "-o", o]), "bad.obj");
+    assert_fails(&rtd(&["render", &scene("scene.fbx", "x"), "-o", o]), "scene.fbx");
+    let files: Vec<_> =
+        files_in(dir.path()).into_iter().filter(|p| p.extension().is_some_and(|e| e == "png")).collect();
+    assert!(files.is_empty(), "outputs written on failure: {files:?}");
+}
+
+#[test]
+fn nan_and_degenerate_triangles_are_skipped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("n.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 2 5\n").unwrap();
+    let out = dir.path().join("n.png");
+    let o = rtd(&[
+        "render",
+        obj.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--look-from",
+        "0.3,0.3,2",
+        "--look-at",
+        "0.3,0.3,0",
+        "--env",
+        "1",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("skipped 1 triangles with NaN") && err.contains("skipped 1 degenerate"), "{err}");
+    assert!(out.exists());
+}

@@ -1,0 +1,404 @@
+//! The glTF and OBJ importers on hand-made files that exercise each supported feature.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+use rtd::render::SceneBvh;
+use rtd::scene::{load_scene, AlphaMode, Light, Projection};
+use serde_json::{json, Value};
+
+/// Little-endian f32 bytes.
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn b64(bytes: &[u8]) -> String {
+    // Minimal base64 encoder for data URIs in test files.
+    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        for i in 0..4 {
+            if i <= c.len() {
+                out.push(T[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// A glTF document with one buffer holding a unit quad in z=0 (positions, uvs, indices).
+/// Returns (json, buffer bytes).
+fn quad_gltf(nodes: Value, materials: Value, extra: &[(&str, Value)]) -> (Value, Vec<u8>) {
+    let pos = f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0]);
+    let uv = f32_bytes(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
+    let idx: Vec<u8> = [0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()).collect();
+    let mut buf = pos.clone();
+    buf.extend(&uv);
+    buf.extend(&idx);
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": nodes,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
+        "materials": materials,
+        "buffers": [{"byteLength": buf.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+            {"buffer": 0, "byteOffset": 80, "byteLength": 12}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ]
+    });
+    for (k, v) in extra {
+        doc[*k] = v.clone();
+    }
+    (doc, buf)
+}
+
+/// Writes a .gltf with the buffer embedded as a data URI.
+fn write_gltf(dir: &Path, name: &str, mut doc: Value, buf: &[u8]) -> PathBuf {
+    doc["buffers"][0]["uri"] = json!(format!("data:application/octet-stream;base64,{}", b64(buf)));
+    let p = dir.join(name);
+    std::fs::write(&p, serde_json::to_string(&doc).unwrap()).unwrap();
+    p
+}
+
+/// Writes a binary .glb: header, JSON chunk, BIN chunk.
+fn write_glb(dir: &Path, name: &str, doc: Value, buf: &[u8]) -> PathBuf {
+    let mut js = serde_json::to_vec(&doc).unwrap();
+    while js.len() % 4 != 0 {
+        js.push(b' ');
+    }
+    let mut bin = buf.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + js.len() + 8 + bin.len();
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    let p = dir.join(name);
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+fn default_material() -> Value {
+    json!([{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0]}}])
+}
+
+#[test]
+fn node_hierarchy_transforms_and_glb_match_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    // Parent translates by (10,0,0) and scales by 2; child rotates 90° about Y.
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let nodes = json!([
+        {"translation": [10.0, 0.0, 0.0], "scale": [2.0, 2.0, 2.0], "children": [1]},
+        {"rotation": [0.0, s, 0.0, s], "mesh": 0}
+    ]);
+    let (doc, buf) = quad_gltf(nodes, default_material(), &[]);
+    let a = load_scene(&write_gltf(dir.path(), "q.gltf", doc.clone(), &buf)).unwrap();
+    let b = load_scene(&write_glb(dir.path(), "q.glb", doc, &buf)).unwrap();
+    assert_eq!(a.triangles.len(), 2);
+    assert_eq!(a.triangles, b.triangles, ".glb and .gltf differ");
+    // Vertex (1,0,0) rotates to (0,0,-1), scales to (0,0,-2), translates to (10,0,-2).
+    assert!((a.triangles[0].p[1] - Vec3::new(10.0, 0.0, -2.0)).length() < 1e-5, "{}", a.triangles[0].p[1]);
+    // No normals in the file: flat normals from the winding, rotated to +X.
+    assert!((a.triangles[0].n[0] - Vec3::X).length() < 1e-5, "{}", a.triangles[0].n[0]);
+    assert!(a.warnings.iter().all(|w| !w.contains("skipped")));
+}
+
+#[test]
+fn mirrored_nodes_keep_their_front_face() {
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, buf) = quad_gltf(json!([{"scale": [1.0, 1.0, -1.0], "mesh": 0}]), default_material(), &[]);
+    let s = load_scene(&write_gltf(dir.path(), "m.gltf", doc, &buf)).unwrap();
+    // A z-mirror of a +Z-facing quad in the z=0 plane must face −Z... after mirroring the
+    // normal direction flips, and the winding is swapped so the front stays consistent.
+    let t = &s.triangles[0];
+    assert!(t.front_normal().dot(t.n[0]) > 0.99);
+}
+
+#[test]
+fn materials_and_extensions_follow_the_spec() {
+    let dir = tempfile::tempdir().unwrap();
+    let mats = json!([
+        {"pbrMetallicRoughness": {"metallicFactor": 0.25, "roughnessFactor": 0.75},
+         "emissiveFactor": [1.0, 0.5, 0.0],
+         "extensions": {
+            "KHR_materials_emissive_strength": {"emissiveStrength": 8.0},
+            "KHR_materials_ior": {"ior": 1.33},
+            "KHR_materials_transmission": {"transmissionFactor": 0.9},
+            "KHR_materials_specular": {"specularFactor": 0.4}
+         },
+         "alphaMode": "MASK", "alphaCutoff": 0.3, "doubleSided": true},
+        {"emissiveFactor": [1.0, 1.0, 1.0]}
+    ]);
+    let used = json!([
+        "KHR_materials_emissive_strength",
+        "KHR_materials_ior",
+        "KHR_materials_transmission",
+        "KHR_materials_specular"
+    ]);
+    let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), mats, &[("extensionsUsed", used)]);
+    let s = load_scene(&write_gltf(dir.path(), "m.gltf", doc, &buf)).unwrap();
+    let m = &s.materials[0];
+    assert_eq!(m.emissive, Vec3::new(8.0, 4.0, 0.0));
+    assert_eq!((m.ior, m.transmission, m.specular, m.metallic, m.roughness), (1.33, 0.9, 0.4, 0.25, 0.75));
+    assert_eq!(m.alpha_mode, AlphaMode::Mask(0.3));
+    assert!(m.double_sided);
+    // Defaults: emissive strength 1, ior 1.5, transmission 0, specular 1.
+    let d = &s.materials[1];
+    assert_eq!((d.emissive, d.ior, d.transmission, d.specular), (Vec3::ONE, 1.5, 0.0, 1.0));
+}
+
+/// A 2×1 RGBA PNG written through rtd's own LDR writer: left texel opaque, right transparent.
+fn png_data_uri(dir: &Path) -> String {
+    let p = dir.join("t.png");
+    let img = image_rgba(&[[128, 64, 255, 255], [10, 200, 30, 0]]);
+    std::fs::write(&p, &img).unwrap();
+    format!("data:image/png;base64,{}", b64(&img))
+}
+
+/// Encodes a 1-row RGBA PNG by hand (stored zlib block) so the test needs no image crate.
+fn image_rgba(px: &[[u8; 4]]) -> Vec<u8> {
+    fn crc(data: &[u8]) -> u32 {
+        let mut c = 0xffff_ffffu32;
+        for &b in data {
+            c ^= b as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+    fn adler(data: &[u8]) -> u32 {
+        let (mut a, mut b) = (1u32, 0u32);
+        for &d in data {
+            a = (a + d as u32) % 65521;
+            b = (b + a) % 65521;
+        }
+        b << 16 | a
+    }
+    let mut raw = vec![0u8];
+    for p in px {
+        raw.extend(p);
+    }
+    let mut z = vec![0x78, 0x01, 1];
+    z.extend((raw.len() as u16).to_le_bytes());
+    z.extend((!(raw.len() as u16)).to_le_bytes());
+    z.extend(&raw);
+    z.extend(adler(&raw).to_be_bytes());
+    let chunk = |t: &[u8], d: &[u8]| {
+        let mut c = (d.len() as u32).to_be_bytes().to_vec();
+        let mut td = t.to_vec();
+        td.extend(d);
+        c.extend(&td);
+        c.extend(crc(&td).to_be_bytes());
+        c
+    };
+    let mut ihdr = (px.len() as u32).to_be_bytes().to_vec();
+    ihdr.extend(1u32.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    out.extend(chunk(b"IHDR", &ihdr));
+    out.extend(chunk(b"IDAT", &z));
+    out.extend(chunk(b"IEND", &[]));
+    out
+}
+
+#[test]
+fn textures_are_linearised_transformed_and_cut_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let uri = png_data_uri(dir.path());
+    let mats = json!([{
+        "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0], "scale": [0.5, 1.0]}}},
+            "metallicRoughnessTexture": {"index": 0}
+        },
+        "alphaMode": "MASK"
+    }]);
+    let extra = [
+        ("images", json!([{"uri": uri}])),
+        ("samplers", json!([{"magFilter": 9728, "minFilter": 9728}])),
+        ("textures", json!([{"source": 0, "sampler": 0}])),
+        ("extensionsUsed", json!(["KHR_texture_transform"])),
+    ];
+    let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), mats, &extra);
+    let s = load_scene(&write_gltf(dir.path(), "t.gltf", doc, &buf)).unwrap();
+    let m = &s.materials[0];
+    assert_eq!(s.textures.len(), 2, "one sRGB and one linear decode of the same image");
+    // uv (0.2, 0.5) → transform → (0.6, 0.5): the right texel (transparent, green).
+    let p = m.evaluate(&s.textures, Vec2::new(0.2, 0.5));
+    assert!((p.base_color - Vec3::new(0.003_035, 0.577_58, 0.012_983)).abs().max_element() < 1e-3, "{}", p.base_color);
+    assert_eq!(p.alpha, 0.0);
+    // Untransformed metallic-roughness at the left texel: G = 64/255 roughness, B = 1 metallic, linear.
+    let p = m.evaluate(&s.textures, Vec2::new(0.2, 0.5));
+    assert!((p.roughness - 64.0 / 255.0).abs() < 1e-6 && (p.metallic - 1.0).abs() < 1e-6, "{p:?}");
+    // The cut-out lets rays through where the base colour texture's alpha is below 0.5:
+    // texture u ≥ 0.5 is transparent, which the transform maps to quad u < 1.
+    let bvh = SceneBvh::build(&s);
+    assert!(bvh.intersect(&s, Vec3::new(0.5, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).is_none());
+    assert!(!bvh.occluded(&s, Vec3::new(0.5, 0.5, 1.0), Vec3::NEG_Z, 2.0));
+}
+
+#[test]
+fn cameras_and_lights() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let nodes = json!([
+        {"mesh": 0, "children": [1, 2, 3, 4]},
+        {"name": "persp", "camera": 0, "translation": [0.0, 0.0, 5.0]},
+        {"name": "ortho", "camera": 1, "rotation": [0.0, s, 0.0, s]},
+        {"translation": [1.0, 2.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+        {"rotation": [-s, 0.0, 0.0, s], "extensions": {"KHR_lights_punctual": {"light": 1}}}
+    ]);
+    let extra = [
+        (
+            "cameras",
+            json!([
+                {"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}},
+                {"type": "orthographic", "orthographic": {"xmag": 2.0, "ymag": 1.5, "znear": 0.1, "zfar": 10.0}}
+            ]),
+        ),
+        (
+            "extensions",
+            json!({"KHR_lights_punctual": {"lights": [
+                {"type": "point", "color": [1.0, 0.5, 0.5], "intensity": 10.0},
+                {"type": "directional", "intensity": 3.0}
+            ]}}),
+        ),
+        ("extensionsUsed", json!(["KHR_lights_punctual"])),
+    ];
+    let (doc, buf) = quad_gltf(nodes, default_material(), &extra);
+    let sc = load_scene(&write_gltf(dir.path(), "c.gltf", doc, &buf)).unwrap();
+    assert_eq!(sc.cameras.len(), 2);
+    let (cam, _) = sc.select_camera(None).unwrap();
+    assert_eq!(cam.name, "persp", "default is the first perspective camera");
+    let (cam, warn) = sc.select_camera(Some("ortho")).unwrap();
+    assert!(warn.is_none());
+    assert_eq!(cam.projection, Projection::Orthographic { ymag: 1.5 });
+    assert!((cam.forward - Vec3::NEG_X).length() < 1e-5, "{}", cam.forward);
+    let (cam, _) = sc.select_camera(Some("0")).unwrap();
+    assert_eq!(cam.projection, Projection::Perspective { yfov: 0.5 });
+    assert!(sc.select_camera(Some("nope")).unwrap_err().contains("persp"));
+    assert!(sc.select_camera(Some("7")).is_err());
+    assert!(sc
+        .lights
+        .contains(&Light::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::new(10.0, 5.0, 5.0) }));
+    // A −90° rotation about X turns the light's −Z into −Y: straight down.
+    let down = sc.lights.iter().find_map(|l| match l {
+        Light::Directional { direction, .. } => Some(*direction),
+        _ => None,
+    });
+    assert!((down.unwrap() - Vec3::NEG_Y).length() < 1e-5);
+}
+
+#[test]
+fn no_camera_gives_an_automatic_one_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), default_material(), &[]);
+    let s = load_scene(&write_gltf(dir.path(), "n.gltf", doc, &buf)).unwrap();
+    let (cam, warn) = s.select_camera(None).unwrap();
+    assert!(warn.unwrap().contains("automatic"));
+    // The automatic camera sees the quad's centre.
+    let p = cam.project(Vec3::new(0.5, 0.5, 0.0), 64, 64).unwrap().0;
+    assert!((p - Vec2::splat(32.0)).length() < 1.0, "{p}");
+}
+
+#[test]
+fn unsupported_required_extension_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (doc, buf) = quad_gltf(
+        json!([{"mesh": 0}]),
+        default_material(),
+        &[
+            ("extensionsUsed", json!(["KHR_draco_mesh_compression"])),
+            ("extensionsRequired", json!(["KHR_draco_mesh_compression"])),
+        ],
+    );
+    let p = write_gltf(dir.path(), "draco.gltf", doc, &buf);
+    let e = load_scene(&p).unwrap_err().to_string();
+    assert!(e.contains("KHR_draco_mesh_compression") && e.contains("draco.gltf"), "{e}");
+    assert!(!e.contains('\n'));
+}
+
+#[test]
+fn malformed_files_are_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, body) in [("bad.gltf", &b"{ not json"[..]), ("bad.glb", b"glTF\x02\0\0\0garbage"), ("empty.gltf", b"")] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, body).unwrap();
+        let e = load_scene(&p).unwrap_err().to_string();
+        assert!(e.contains(name) && !e.contains('\n'), "{e}");
+    }
+    // A buffer too short for its accessors.
+    let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), default_material(), &[]);
+    let p = write_gltf(dir.path(), "short.gltf", doc, &buf[..20]);
+    assert!(load_scene(&p).unwrap_err().to_string().contains("short.gltf"));
+    assert!(load_scene(&dir.path().join("missing.gltf")).is_err());
+    assert!(load_scene(&dir.path().join("scene.fbx")).unwrap_err().to_string().contains("unknown scene format"));
+}
+
+#[test]
+fn obj_with_mtl_maps_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl glass\nKd 0 0 0\nNi 1.33\nillum 7\n\
+         newmtl metal\nKd 0 0 0\nKs 0.9 0.6 0.3\nNs 200\n\
+         newmtl lamp\nKd 0.5 0.5 0.5\nKe 4 4 2\n\
+         newmtl plastic\nKd 0.8 0.1 0.1\nKs 0.5 0.5 0.5\nNs 1000\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("m.obj"),
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv nan 0 0\nvt 0 0\nvt 1 0\nvt 1 1\n\
+         usemtl glass\nf 1/1 2/2 3/3\nusemtl metal\nf 1 3 4\nusemtl lamp\nf 1 2 4\nusemtl plastic\nf 2 3 4\n\
+         f 1 2 5\nf 1 1 2\n",
+    )
+    .unwrap();
+    let s = load_scene(&dir.path().join("m.obj")).unwrap();
+    assert_eq!(s.triangles.len(), 4);
+    assert_eq!((s.skipped_nonfinite, s.skipped_degenerate), (1, 1));
+    assert!(s.warnings.iter().any(|w| w.contains("NaN")) && s.warnings.iter().any(|w| w.contains("degenerate")));
+    let by_name = |n: &str| s.materials.iter().find(|m| m.name == n).unwrap();
+    let g = by_name("glass");
+    assert_eq!((g.transmission, g.ior, g.roughness), (1.0, 1.33, 0.0));
+    let m = by_name("metal");
+    assert_eq!((m.metallic, m.base_color.truncate()), (1.0, Vec3::new(0.9, 0.6, 0.3)));
+    assert!((m.roughness - (2.0f32 / 202.0).sqrt().sqrt()).abs() < 1e-6);
+    assert_eq!(by_name("lamp").emissive, Vec3::new(4.0, 4.0, 2.0));
+    let p = by_name("plastic");
+    assert_eq!((p.metallic, p.specular), (0.0, 0.5));
+    // OBJ's v runs upwards; rtd flips it so that textures read top row first.
+    assert_eq!(s.triangles[0].uv[2], Vec2::new(1.0, 0.0));
+    // A missing MTL is a warning, not an error.
+    std::fs::write(dir.path().join("n.obj"), "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let s = load_scene(&dir.path().join("n.obj")).unwrap();
+    assert_eq!(s.triangles.len(), 1);
+}
+
+#[test]
+fn bundled_scenes_load_without_warnings() {
+    for name in ["cornell-box", "glass-and-metals", "textured-interior", "small-lights"] {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.gltf"));
+        let s = load_scene(&p).unwrap();
+        assert!(s.warnings.is_empty(), "{name}: {:?}", s.warnings);
+        assert!(!s.cameras.is_empty() && s.emissive_triangle_count() > 0, "{name}");
+    }
+}
