@@ -139,38 +139,60 @@ impl Bsdf {
         self.p.specular * fresnel_schlick(self.f0, cos).max_element()
     }
 
-    /// Value of one non-delta lobe (without its mixture weight).
-    fn lobe_f(&self, lobe: Lobe, wo: Vec3, wi: Vec3) -> Vec3 {
+    /// Value (without the lobe's mixture weight) and sampling pdf of one non-delta lobe,
+    /// sharing the half vector, D and the Smith terms between the two.
+    fn lobe_eval(&self, lobe: Lobe, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        const NONE: (Vec3, f32) = (Vec3::ZERO, 0.0);
         match lobe {
             Lobe::Diffuse | Lobe::Specular | Lobe::Conductor => {
                 // Opaque lobes are two-sided: mirror both directions into the upper hemisphere.
                 if wo.z * wi.z <= 0.0 {
-                    return Vec3::ZERO;
+                    return NONE;
                 }
                 let (wo, wi) = (two_sided(wo), two_sided(wi));
-                match lobe {
-                    Lobe::Diffuse => {
-                        self.p.base_color * FRAC_1_PI * (1.0 - self.layer_f(wo.z)) * (1.0 - self.layer_f(wi.z))
-                    }
-                    Lobe::Specular => self
-                        .microfacet_reflection(wo, wi, |c| Vec3::splat(self.p.specular) * fresnel_schlick(self.f0, c)),
-                    _ => self.microfacet_reflection(wo, wi, |c| fresnel_schlick(self.p.base_color, c)),
+                if lobe == Lobe::Diffuse {
+                    let f = self.p.base_color * FRAC_1_PI * (1.0 - self.layer_f(wo.z)) * (1.0 - self.layer_f(wi.z));
+                    return (f, cosine_hemisphere_pdf(wi.z));
+                }
+                let wm = wo + wi;
+                if wm.length_squared() == 0.0 {
+                    return NONE;
+                }
+                let wm = wm.normalize();
+                let cos_om = wo.dot(wm);
+                let fresnel = if lobe == Lobe::Specular {
+                    Vec3::splat(self.p.specular) * fresnel_schlick(self.f0, cos_om)
+                } else {
+                    fresnel_schlick(self.p.base_color, cos_om)
+                };
+                let d = self.ggx.d(wm);
+                let (lo, li) = (self.ggx.lambda(wo), self.ggx.lambda(wi));
+                // f = F·D·G2/(4 cos_o cos_i); pdf = D_wo(wm)/(4 wo·wm) = G1(wo)·D/(4 cos_o).
+                let f = fresnel * (d / ((1.0 + lo + li) * 4.0 * wo.z * wi.z));
+                (f, d / ((1.0 + lo) * 4.0 * wo.z))
+            }
+            Lobe::Dielectric => {
+                let Some((wm, etap, reflect)) = self.dielectric_half(wo, wi) else {
+                    return NONE;
+                };
+                let (cos_om, cos_im) = (wo.dot(wm), wi.dot(wm));
+                let fr = fresnel_dielectric(cos_om, self.p.ior);
+                let d = self.ggx.d(wm);
+                let (lo, li) = (self.ggx.lambda(wo), self.ggx.lambda(wi));
+                let g = 1.0 / (1.0 + lo + li);
+                // Visible-normal density D_wo(wm) = G1(wo)·D·|wo·wm|/|cos_o|.
+                let pm = d * cos_om.abs() / ((1.0 + lo) * wo.z.abs());
+                if reflect {
+                    (Vec3::splat(d * g * fr / (4.0 * wi.z * wo.z).abs()), pm / (4.0 * cos_om.abs()) * fr)
+                } else {
+                    // Walter et al. 2007 transmission, with the 1/η'² radiance scaling.
+                    let denom = (cos_im + cos_om / etap).powi(2);
+                    let ft = d * (1.0 - fr) * g * (cos_im * cos_om / (denom * wi.z * wo.z)).abs() / (etap * etap);
+                    (self.p.base_color * ft, pm * cos_im.abs() / denom * (1.0 - fr))
                 }
             }
-            Lobe::Dielectric => self.dielectric_f(wo, wi),
-            Lobe::PassThrough => Vec3::ZERO,
+            Lobe::PassThrough => NONE,
         }
-    }
-
-    /// GGX reflection D·G·F/(4 cos_o cos_i) for upper-hemisphere wo, wi.
-    #[inline]
-    fn microfacet_reflection(&self, wo: Vec3, wi: Vec3, fresnel: impl Fn(f32) -> Vec3) -> Vec3 {
-        let wm = wo + wi;
-        if wo.z <= 0.0 || wi.z <= 0.0 || wm.length_squared() == 0.0 {
-            return Vec3::ZERO;
-        }
-        let wm = wm.normalize();
-        fresnel(wo.dot(wm)) * (self.ggx.d(wm) * self.ggx.g(wo, wi) / (4.0 * wo.z * wi.z))
     }
 
     /// Generalised half vector for the dielectric: (wm with wm.z > 0, η' ratio), or None.
@@ -203,66 +225,23 @@ impl Bsdf {
         Some((wm, etap, reflect))
     }
 
-    /// Rough dielectric BSDF value (Walter et al. 2007), radiance transport.
-    fn dielectric_f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let Some((wm, etap, reflect)) = self.dielectric_half(wo, wi) else {
-            return Vec3::ZERO;
-        };
-        let f = fresnel_dielectric(wo.dot(wm), self.p.ior);
-        let g = self.ggx.g(wo, wi);
-        let d = self.ggx.d(wm);
-        if reflect {
-            Vec3::splat(d * g * f / (4.0 * wi.z * wo.z).abs())
-        } else {
-            let denom = (wi.dot(wm) + wo.dot(wm) / etap).powi(2) * wi.z * wo.z;
-            let ft = d * (1.0 - f) * g * (wi.dot(wm) * wo.dot(wm) / denom).abs() / (etap * etap);
-            self.p.base_color * ft
-        }
-    }
-
-    /// Pdf of one non-delta lobe's sampling strategy.
-    fn lobe_pdf(&self, lobe: Lobe, wo: Vec3, wi: Vec3) -> f32 {
-        match lobe {
-            Lobe::Diffuse | Lobe::Specular | Lobe::Conductor => {
-                if wo.z * wi.z <= 0.0 {
-                    return 0.0;
-                }
-                let (wo, wi) = (two_sided(wo), two_sided(wi));
-                if lobe == Lobe::Diffuse {
-                    return cosine_hemisphere_pdf(wi.z);
-                }
-                let wm = (wo + wi).normalize_or_zero();
-                if wm == Vec3::ZERO {
-                    return 0.0;
-                }
-                self.ggx.pdf_visible(wo, wm) / (4.0 * wo.dot(wm).abs())
+    /// The BSDF value f(wo, wi) over all non-delta lobes, and the solid-angle pdf with which
+    /// [`Bsdf::sample`] produces `wi`.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let (mut f, mut pdf) = (Vec3::ZERO, 0.0);
+        for (i, &lobe) in LOBES.iter().enumerate() {
+            if self.prob[i] > 0.0 && !self.delta[i] {
+                let (lf, lp) = self.lobe_eval(lobe, wo, wi);
+                f += self.lobe_weight(lobe) * lf;
+                pdf += self.prob[i] * lp;
             }
-            Lobe::Dielectric => {
-                let Some((wm, etap, reflect)) = self.dielectric_half(wo, wi) else {
-                    return 0.0;
-                };
-                let r = fresnel_dielectric(wo.dot(wm), self.p.ior);
-                let pm = self.ggx.pdf_visible(wo, wm);
-                if reflect {
-                    pm / (4.0 * wo.dot(wm).abs()) * r
-                } else {
-                    let denom = (wi.dot(wm) + wo.dot(wm) / etap).powi(2);
-                    pm * wi.dot(wm).abs() / denom * (1.0 - r)
-                }
-            }
-            Lobe::PassThrough => 0.0,
         }
+        (f, pdf)
     }
 
     /// The BSDF value f(wo, wi) over all non-delta lobes.
     pub fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let mut sum = Vec3::ZERO;
-        for (i, &lobe) in LOBES.iter().enumerate() {
-            if self.prob[i] > 0.0 && !self.delta[i] {
-                sum += self.lobe_weight(lobe) * self.lobe_f(lobe, wo, wi);
-            }
-        }
-        sum
+        self.eval(wo, wi).0
     }
 
     /// Mixture weight of a lobe in the BSDF (not its sampling probability).
@@ -279,13 +258,7 @@ impl Bsdf {
 
     /// The solid-angle pdf with which [`Bsdf::sample`] produces non-delta direction `wi`.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let mut sum = 0.0;
-        for (i, &lobe) in LOBES.iter().enumerate() {
-            if self.prob[i] > 0.0 && !self.delta[i] {
-                sum += self.prob[i] * self.lobe_pdf(lobe, wo, wi);
-            }
-        }
-        sum
+        self.eval(wo, wi).1
     }
 
     /// Samples an incident direction. `u_lobe` picks the lobe (and, remapped, reflection versus
@@ -344,11 +317,10 @@ impl Bsdf {
             }
             Lobe::PassThrough => unreachable!("pass-through is a delta lobe"),
         };
-        let pdf = self.pdf(wo, wi);
+        let (f, pdf) = self.eval(wo, wi);
         if !(pdf > 0.0) || !wi.is_finite() {
             return None;
         }
-        let f = self.f(wo, wi);
         Some(BsdfSample { wi, weight: f * wi.z.abs() / pdf, pdf, delta: false })
     }
 

@@ -120,7 +120,8 @@ impl Integrator<'_> {
                 if let Some(ls) = lights.sample(scene, s.p, u_select, u_light) {
                     let wi_l = frame.to_local(ls.wi);
                     if ls.pdf > 0.0 && ls.li != Vec3::ZERO && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l) {
-                        let f = bsdf.f(wo_l, wi_l) * wi_l.z.abs();
+                        let (f, bsdf_pdf) = bsdf.eval(wo_l, wi_l);
+                        let f = f * wi_l.z.abs();
                         if f != Vec3::ZERO {
                             rays += 1;
                             let from = s.spawn_origin(ls.wi);
@@ -133,7 +134,7 @@ impl Integrator<'_> {
                                 None => bvh.occluded(scene, from, ls.wi, f32::INFINITY),
                             };
                             if !blocked {
-                                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_l, wi_l)) };
+                                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
                                 radiance += beta * f * ls.li * (w / ls.pdf);
                             }
                         }

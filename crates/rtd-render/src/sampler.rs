@@ -20,19 +20,38 @@ const SOBOL_DIM1: [u32; 32] = {
     v
 };
 
+/// Dimension-1 Sobol as four byte tables: entry `b` of table `k` XORs the direction numbers of
+/// the set bits of byte `k`, so a point costs four lookups instead of a 32-step loop.
+const SOBOL_DIM1_BYTES: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut x = 0;
+            let mut bit = 0;
+            while bit < 8 {
+                if b & (1 << bit) != 0 {
+                    x ^= SOBOL_DIM1[8 * k + bit];
+                }
+                bit += 1;
+            }
+            t[k][b] = x;
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+};
+
 /// 32-bit Sobol point `index` in dimension 1.
 #[inline]
-fn sobol_dim1(mut index: u32) -> u32 {
-    let mut x = 0;
-    let mut bit = 0;
-    while index != 0 {
-        if index & 1 != 0 {
-            x ^= SOBOL_DIM1[bit];
-        }
-        index >>= 1;
-        bit += 1;
-    }
-    x
+fn sobol_dim1(index: u32) -> u32 {
+    let t = &SOBOL_DIM1_BYTES;
+    t[0][(index & 0xff) as usize]
+        ^ t[1][((index >> 8) & 0xff) as usize]
+        ^ t[2][((index >> 16) & 0xff) as usize]
+        ^ t[3][(index >> 24) as usize]
 }
 
 /// Laine–Karras style permutation used for Owen scrambling (Burley 2020's constants).
@@ -114,6 +133,19 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn byte_tables_match_the_direction_numbers() {
+        for i in [0u32, 1, 2, 3, 255, 256, 12345, 0xdead_beef, u32::MAX] {
+            let mut x = 0;
+            for bit in 0..32 {
+                if i & (1 << bit) != 0 {
+                    x ^= SOBOL_DIM1[bit];
+                }
+            }
+            assert_eq!(sobol_dim1(i), x, "index {i}");
+        }
+    }
 
     #[test]
     fn sobol_dim1_is_a_02_sequence() {
