@@ -126,6 +126,7 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "0"]), "spp");
     assert_fails(&rtd(&["render", &c, "-o", o, "--width", "0"]), "width");
     assert_fails(&rtd(&["render", &c, "-o", o, "--height", "100000"]), "height");
+    assert_fails(&rtd(&["render", &c, "-o", o, "--width", "16384", "--height", "16384"]), "16384x16384");
     assert_fails(&rtd(&["render", &c, "-o", o, "--time", "-1"]), "time");
     assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "4", "--time", "1"]), "time");
     assert_fails(&rtd(&["render", &c, "-o", o, "--max-depth", "0"]), "max-depth");
@@ -193,4 +194,41 @@ fn nan_and_degenerate_triangles_are_skipped_with_a_warning() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("skipped 1 triangles with NaN") && err.contains("skipped 1 degenerate"), "{err}");
     assert!(out.exists());
+}
+
+/// Ctrl-C (SIGINT) stops after the pass in flight and still writes the finished passes.
+#[test]
+fn interrupt_keeps_finished_passes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("i.exr");
+    let report = dir.path().join("i.json");
+    let child = Command::new(env!("CARGO_BIN_EXE_rtd"))
+        .args([
+            "render",
+            &cornell(),
+            "-o",
+            out.to_str().unwrap(),
+            "--spp",
+            "1000000",
+            "--width",
+            "32",
+            "--height",
+            "32",
+        ])
+        .args(["--report", report.to_str().unwrap(), "-q"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until it has rendered for a while, then interrupt it like a terminal would.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["interrupted"], true);
+    let spp = r["spp"].as_u64().unwrap();
+    assert!(spp > 0 && spp < 1_000_000, "spp {spp}");
+    assert!(rtd::image::read_exr(&out).unwrap().rgb("").unwrap().is_finite());
 }

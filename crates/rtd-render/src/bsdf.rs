@@ -532,8 +532,10 @@ mod tests {
         let mut cases: Vec<(String, BsdfParams, f32)> = Vec::new();
         for &cos in &[0.9f32, 0.5, 0.1, 0.02] {
             cases.push((format!("lambert cos={cos}"), BsdfParams { specular: 0.0, ..params(0.0, 1.0, 0.0, 1.5) }, cos));
-            for &r in &[0.3f32, 0.6, 1.0] {
+            for &r in &[0.1f32, 0.3, 0.6, 1.0] {
                 cases.push((format!("metal r={r} cos={cos}"), params(1.0, r, 0.0, 1.5), cos));
+                // Nearer IOR 1 the transmitted lobe (width ~ α²(η−1)) is narrower than a
+                // quadrature grid resolves; IOR 1.0–1.01 is covered by the energy and fuzz tests.
                 for &ior in &[1.1f32, 1.5, 3.0] {
                     cases.push((format!("plastic r={r} ior={ior} cos={cos}"), params(0.0, r, 0.0, ior), cos));
                     cases.push((format!("glass r={r} ior={ior} cos={cos}"), params(0.0, r, 1.0, ior), cos));

@@ -17,6 +17,9 @@ use crate::RenderError;
 
 /// Largest accepted image side.
 pub const MAX_RESOLUTION: u32 = 16384;
+/// Largest accepted image area: the film keeps 52 bytes per pixel (f64 beauty, f32 AOVs), so
+/// this bounds it near 3.5 GB on the 24 GiB machines rtd targets.
+pub const MAX_PIXELS: u64 = 1 << 26;
 /// Largest accepted samples per pixel in one call.
 pub const MAX_SPP: u32 = 1 << 24;
 
@@ -91,6 +94,12 @@ impl RenderSettings {
         if self.width == 0 || self.height == 0 || self.width > MAX_RESOLUTION || self.height > MAX_RESOLUTION {
             return Err(RenderError::InvalidSettings(format!(
                 "resolution {}x{} is outside 1..={MAX_RESOLUTION} per side",
+                self.width, self.height
+            )));
+        }
+        if self.width as u64 * self.height as u64 > MAX_PIXELS {
+            return Err(RenderError::InvalidSettings(format!(
+                "resolution {}x{} exceeds {MAX_PIXELS} pixels (8192x8192); render tiles or lower the resolution",
                 self.width, self.height
             )));
         }
