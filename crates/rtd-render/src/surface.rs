@@ -33,19 +33,19 @@ impl Surface {
         let t = &scene.triangles[hit.triangle as usize];
         let b = hit.bary;
         let p = t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
-        let p_error = ((t.p[0] * b.x).abs() + (t.p[1] * b.y).abs() + (t.p[2] * b.z).abs()) * GAMMA7;
+        let p_error = Self::error_bound(t, b);
         let ng = t.front_normal();
         let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
         let material = &scene.materials[t.material as usize];
         let params = material.evaluate(&scene.textures, uv);
-        let mut ns = (t.n[0] * b.x + t.n[1] * b.y + t.n[2] * b.z).normalize_or(ng);
-        if let Some(tn) = params.tangent_normal {
-            ns = apply_normal_map(t, b, ns, tn).unwrap_or(ns);
-        }
-        if ns.dot(ng) < 0.0 {
-            ns = -ns;
-        }
+        let ns = shading_normal(t, b, ng, params.tangent_normal);
         Surface { p, p_error, ng, ns, uv, triangle: hit.triangle, params }
+    }
+
+    /// The point's rounding-error bound for a hit at barycentrics `b` of triangle `t`.
+    #[inline]
+    pub fn error_bound(t: &rtd_scene::Triangle, b: Vec3) -> Vec3 {
+        ((t.p[0] * b.x).abs() + (t.p[1] * b.y).abs() + (t.p[2] * b.z).abs()) * GAMMA7
     }
 
     /// A ray origin offset off the surface towards direction `w`, far enough to escape the
@@ -53,6 +53,21 @@ impl Surface {
     #[inline]
     pub fn spawn_origin(&self, w: Vec3) -> Vec3 {
         offset_origin(self.p, self.p_error, self.ng, w)
+    }
+}
+
+/// The unit shading normal at barycentrics `b`: interpolated vertex normals, perturbed by the
+/// tangent-space normal-map value `tangent_normal` if any, on the side of the front normal `ng`.
+#[inline]
+pub fn shading_normal(t: &rtd_scene::Triangle, b: Vec3, ng: Vec3, tangent_normal: Option<Vec3>) -> Vec3 {
+    let mut ns = (t.n[0] * b.x + t.n[1] * b.y + t.n[2] * b.z).normalize_or(ng);
+    if let Some(tn) = tangent_normal {
+        ns = apply_normal_map(t, b, ns, tn).unwrap_or(ns);
+    }
+    if ns.dot(ng) < 0.0 {
+        -ns
+    } else {
+        ns
     }
 }
 

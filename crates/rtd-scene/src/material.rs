@@ -167,12 +167,33 @@ impl Material {
         a
     }
 
+    /// Base colour × texture at `uv` (RGB and alpha, unclamped).
+    #[inline]
+    fn base_rgba(&self, textures: &[Texture], uv: Vec2) -> Vec4 {
+        match &self.base_color_texture {
+            Some(t) => self.base_color * t.sample(textures, uv),
+            None => self.base_color,
+        }
+    }
+
+    /// The albedo that the AOVs and the guide pass record: base colour × texture, in [0,1].
+    #[inline]
+    pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+        clamp_color(self.base_rgba(textures, uv).xyz())
+    }
+
+    /// Tangent-space normal from the normal map (scaled, unnormalised), if the material has one.
+    #[inline]
+    pub fn tangent_normal(&self, textures: &[Texture], uv: Vec2) -> Option<Vec3> {
+        self.normal_texture.as_ref().map(|t| {
+            let s = t.sample(textures, uv).xyz() * 2.0 - Vec3::ONE;
+            Vec3::new(s.x * self.normal_scale, s.y * self.normal_scale, s.z)
+        })
+    }
+
     /// Evaluates every factor and texture at `uv`.
     pub fn evaluate(&self, textures: &[Texture], uv: Vec2) -> SurfaceParams {
-        let mut base = self.base_color;
-        if let Some(t) = &self.base_color_texture {
-            base *= t.sample(textures, uv);
-        }
+        let base = self.base_rgba(textures, uv);
         let (mut metallic, mut roughness) = (self.metallic, self.roughness);
         if let Some(t) = &self.metallic_roughness_texture {
             let s = t.sample(textures, uv);
@@ -191,10 +212,7 @@ impl Material {
         if let Some(t) = &self.specular_texture {
             specular *= t.sample(textures, uv).w;
         }
-        let tangent_normal = self.normal_texture.as_ref().map(|t| {
-            let s = t.sample(textures, uv).xyz() * 2.0 - Vec3::ONE;
-            Vec3::new(s.x * self.normal_scale, s.y * self.normal_scale, s.z)
-        });
+        let tangent_normal = self.tangent_normal(textures, uv);
         let sat = |x: f32| {
             if x.is_finite() {
                 x.clamp(0.0, 1.0)
@@ -204,7 +222,7 @@ impl Material {
         };
         let pos = |v: Vec3| v.map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 });
         SurfaceParams {
-            base_color: pos(base.xyz()).min(Vec3::ONE),
+            base_color: clamp_color(base.xyz()),
             alpha: sat(base.w),
             metallic: sat(metallic),
             roughness: sat(roughness),
@@ -216,6 +234,12 @@ impl Material {
             tangent_normal,
         }
     }
+}
+
+/// Maps each channel into [0,1], with NaN as 0.
+#[inline]
+fn clamp_color(v: Vec3) -> Vec3 {
+    v.map(|x| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 })
 }
 
 #[cfg(test)]

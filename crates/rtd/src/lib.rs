@@ -4,9 +4,11 @@
 //! tests and benchmarks reach the same code paths as users.
 
 pub mod args;
+pub mod guide_command;
 pub mod progress;
 pub mod render_command;
 
+pub use rtd_guide as guide;
 pub use rtd_image as image;
 pub use rtd_render as render;
 pub use rtd_scene as scene;
@@ -29,6 +31,7 @@ where
     };
     match cli.command {
         args::Command::Render(a) => render_command::render(&a).map(|_| ()),
+        args::Command::Guide(a) => guide_command::guide(&a).map(|_| ()),
     }
 }
 

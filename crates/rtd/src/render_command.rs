@@ -6,11 +6,12 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use serde::Serialize;
 
+use rtd_guide::{GuidePass, GuideSettings};
 use rtd_image::{ImageFormat, Tonemap};
 use rtd_render::{Film, PathTracer, RenderScene, RenderSettings, RenderStats};
 use rtd_scene::{Camera, Environment, Scene};
 
-use crate::args::{RenderArgs, TonemapArg};
+use crate::args::{RenderArgs, TonemapArg, ViewArgs};
 use crate::progress::{bar, interrupt_flag, BarObserver};
 
 /// What `rtd render --report` writes.
@@ -58,6 +59,9 @@ pub struct RenderReport {
     pub warnings: Vec<String>,
     /// True if Ctrl-C stopped the render early (the image holds the finished passes).
     pub interrupted: bool,
+    /// Guide-pass seconds (with `--aov`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub guide_s: Option<f64>,
 }
 
 /// Fails early, before any rendering, if `path` cannot be written as an image.
@@ -93,7 +97,7 @@ pub fn load_scene(path: &Path, env: Option<&str>) -> anyhow::Result<Scene> {
 }
 
 /// Chooses the camera from `--look-from/--look-at/--fov` or `--camera`, warning if automatic.
-pub fn choose_camera(scene: &Scene, args: &RenderArgs) -> anyhow::Result<(Camera, Option<String>)> {
+pub fn choose_camera(scene: &Scene, args: &ViewArgs) -> anyhow::Result<(Camera, Option<String>)> {
     if let (Some(from), Some(at)) = (args.look_from, args.look_at) {
         if from == at {
             bail!("--look-from and --look-at are the same point");
@@ -103,10 +107,23 @@ pub fn choose_camera(scene: &Scene, args: &RenderArgs) -> anyhow::Result<(Camera
     scene.select_camera(args.camera.as_deref()).map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))
 }
 
-/// Writes the film as EXR (all layers) or as a tonemapped 8-bit image.
-pub fn write_film(path: &Path, film: &Film, exposure: f32, tonemap: TonemapArg) -> anyhow::Result<()> {
+/// Writes the film as EXR (all layers, plus the guide pass's if given) or as a tonemapped
+/// 8-bit image.
+pub fn write_film(
+    path: &Path,
+    film: &Film,
+    guide: Option<&GuidePass>,
+    exposure: f32,
+    tonemap: TonemapArg,
+) -> anyhow::Result<()> {
     match ImageFormat::from_path(path)? {
-        ImageFormat::Exr => rtd_image::write_exr(path, &film.layers())?,
+        ImageFormat::Exr => {
+            let mut layers = film.layers();
+            if let Some(g) = guide {
+                g.add_to(&mut layers);
+            }
+            rtd_image::write_exr(path, &layers)?
+        }
         _ => {
             let t = match tonemap {
                 TonemapArg::Clamp => Tonemap::Clamp,
@@ -118,43 +135,56 @@ pub fn write_film(path: &Path, film: &Film, exposure: f32, tonemap: TonemapArg) 
     Ok(())
 }
 
+/// A loaded, prepared scene and the chosen camera, with warnings already printed.
+pub struct PreparedView {
+    /// Scene, BVH and lights.
+    pub scene: RenderScene,
+    /// The camera.
+    pub camera: Camera,
+    /// Seconds spent loading the file.
+    pub load_s: f64,
+}
+
+/// Loads the scene of `view`, prints its warnings, picks the camera and builds the BVH.
+pub fn prepare_view(view: &ViewArgs, env: Option<&str>) -> anyhow::Result<PreparedView> {
+    let t_load = Instant::now();
+    let scene = load_scene(&view.scene, env)?;
+    let load_s = t_load.elapsed().as_secs_f64();
+    for w in &scene.warnings {
+        eprintln!("rtd: warning: {}: {w}", view.scene.display());
+    }
+    let (camera, cam_warning) = choose_camera(&scene, view)?;
+    if let Some(w) = cam_warning {
+        eprintln!("rtd: warning: {}: {w}", view.scene.display());
+    }
+    if scene.triangles.is_empty() {
+        eprintln!("rtd: warning: {}: scene has no triangles", view.scene.display());
+    }
+    Ok(PreparedView { scene: RenderScene::new(scene), camera, load_s })
+}
+
 /// Runs `rtd render` and returns its report.
 pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
+    let view = &args.view;
     check_output(&args.output)?;
     if let Some(r) = &args.report {
         check_report_path(r)?;
     }
-    let t_load = Instant::now();
-    let scene = load_scene(&args.scene, args.env.as_deref())?;
-    let load_s = t_load.elapsed().as_secs_f64();
-    for w in &scene.warnings {
-        eprintln!("rtd: warning: {}: {w}", args.scene.display());
-    }
-    let (camera, cam_warning) = choose_camera(&scene, args)?;
-    if let Some(w) = cam_warning {
-        eprintln!("rtd: warning: {}: {w}", args.scene.display());
-    }
-    if scene.triangles.is_empty() {
-        eprintln!(
-            "rtd: warning: {}: scene has no triangles; the image shows only the environment",
-            args.scene.display()
-        );
-    }
-    let prepared = RenderScene::new(scene);
+    let PreparedView { scene: prepared, camera, load_s } = prepare_view(view, args.env.as_deref())?;
     if prepared.lights.is_empty() {
-        eprintln!("rtd: warning: {}: scene has no lights and no --env; the image will be black", args.scene.display());
+        eprintln!("rtd: warning: {}: scene has no lights and no --env; the image will be black", view.scene.display());
     }
-    let settings = RenderSettings::new(args.width, args.height)
+    let settings = RenderSettings::new(view.width, view.height)
         .seed(args.seed)
         .max_depth(args.max_depth)
         .clamp(args.clamp)
-        .threads(args.threads.map(|t| t as usize));
+        .threads(view.threads.map(|t| t as usize));
     let tracer = PathTracer::new(&prepared, camera.clone(), settings)?;
     let mut film = tracer.film();
     let interrupted = interrupt_flag();
     let stats = match args.time {
         Some(secs) => {
-            let observer = TimedObserver::new(secs, args.quiet, interrupted.clone());
+            let observer = TimedObserver::new(secs, view.quiet, interrupted.clone());
             let s = tracer.render_for(&mut film, Duration::from_secs_f64(secs), &observer)?;
             observer.bar.finish_and_clear();
             s
@@ -162,7 +192,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         None => {
             let spp = args.spp.unwrap_or(16);
             let observer = BarObserver {
-                bar: bar(spp as u64 * args.height as u64, "render", args.quiet),
+                bar: bar(spp as u64 * view.height as u64, "render", view.quiet),
                 interrupted: interrupted.clone(),
             };
             let s = tracer.render_observed(&mut film, spp, &observer)?;
@@ -174,18 +204,26 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     if film.spp == 0 {
         bail!("interrupted before the first pass finished; nothing written");
     }
-    write_film(&args.output, &film, args.exposure, args.tonemap)?;
-    let report = make_report(args, &prepared, &camera, load_s, &stats, &film, was_interrupted);
+    let guide = if args.aov {
+        let settings = GuideSettings::new(view.width, view.height).threads(view.threads.map(|t| t as usize));
+        Some(GuidePass::render(&prepared.scene, &prepared.bvh, &camera, &settings)?)
+    } else {
+        None
+    };
+    write_film(&args.output, &film, guide.as_ref(), args.exposure, args.tonemap)?;
+    let mut report = make_report(args, &prepared, &camera, load_s, &stats, &film, was_interrupted);
+    report.guide_s = guide.as_ref().map(|g| g.seconds);
     println!(
-        "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}",
+        "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}{}",
         report.spp,
-        args.width,
-        args.height,
+        view.width,
+        view.height,
         report.render_s,
         report.paths_per_s / 1e6,
         report.rays_per_s / 1e6,
         report.rays_per_path,
         report.nonfinite_samples,
+        guide.as_ref().map(|g| format!(", guide pass {:.3} s", g.seconds)).unwrap_or_default(),
         if was_interrupted { " (interrupted: image holds the finished passes)" } else { "" }
     );
     if let Some(path) = &args.report {
@@ -194,7 +232,8 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     Ok(report)
 }
 
-fn check_report_path(path: &Path) -> anyhow::Result<()> {
+/// Fails early if the report's directory does not exist.
+pub fn check_report_path(path: &Path) -> anyhow::Result<()> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -227,10 +266,10 @@ fn make_report(
     let scene = &prepared.scene;
     let secs = stats.seconds.max(1e-9);
     RenderReport {
-        scene: args.scene.display().to_string(),
+        scene: args.view.scene.display().to_string(),
         output: args.output.display().to_string(),
-        width: args.width,
-        height: args.height,
+        width: args.view.width,
+        height: args.view.height,
         spp: film.spp,
         seed: args.seed,
         max_depth: args.max_depth,
@@ -248,6 +287,7 @@ fn make_report(
         skipped_triangles: scene.skipped_degenerate + scene.skipped_nonfinite,
         warnings: scene.warnings.clone(),
         interrupted,
+        guide_s: None,
     }
 }
 

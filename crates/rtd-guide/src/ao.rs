@@ -1,0 +1,123 @@
+//! Ambient occlusion through the BVH: a fixed, stratified, cosine-weighted pattern of occlusion
+//! rays, evaluated on a sparse grid and upsampled with depth- and normal-aware weights.
+//!
+//! AO(p) = (1/π) ∫ V(p, ω, R) cosθ dω, the cosine-weighted fraction of the hemisphere around the
+//! camera-facing geometric normal that is free of geometry within radius R. The same direction
+//! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
+//! noise). Pixels whose sparse neighbours lie on other surfaces are evaluated directly.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use rtd_render::sampling::{sample_cosine_hemisphere, Frame};
+use rtd_render::surface::offset_origin;
+use rtd_render::SceneBvh;
+use rtd_scene::Scene;
+
+/// A surface point where AO is wanted.
+#[derive(Debug, Clone, Copy)]
+pub struct AoPoint {
+    /// Position.
+    pub p: Vec3,
+    /// Rounding-error bound of `p`.
+    pub p_error: Vec3,
+    /// Unit geometric normal facing the camera.
+    pub n: Vec3,
+    /// Camera-space distance, for the upsampling weights.
+    pub depth: f32,
+}
+
+/// The fixed direction pattern: `n` cosine-weighted directions from a Hammersley set (+z up).
+pub fn pattern(n: u32) -> Vec<Vec3> {
+    (0..n)
+        .map(|i| {
+            let u = Vec2::new((i as f32 + 0.5) / n as f32, (i.reverse_bits() as f64 / 4294967296.0) as f32);
+            sample_cosine_hemisphere(u)
+        })
+        .collect()
+}
+
+/// AO at one point: the fraction of pattern directions unoccluded within `radius`.
+pub fn ao_at(scene: &Scene, bvh: &SceneBvh, pt: &AoPoint, dirs: &[Vec3], radius: f32) -> f32 {
+    let frame = Frame::from_normal(pt.n);
+    let mut open = 0u32;
+    for d in dirs {
+        let w = frame.to_world(*d);
+        let o = offset_origin(pt.p, pt.p_error, pt.n, w);
+        if !bvh.occluded(scene, o, w, radius) {
+            open += 1;
+        }
+    }
+    open as f32 / dirs.len() as f32
+}
+
+/// Computes AO for a `width`×`height` image of optional points, evaluating directly on every
+/// `step`-th pixel and interpolating between those where the surfaces agree.
+pub fn ao_image(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    points: &[Option<AoPoint>],
+    width: u32,
+    height: u32,
+    dirs: &[Vec3],
+    radius: f32,
+    step: u32,
+) -> Vec<f32> {
+    let (w, h) = (width as usize, height as usize);
+    let step = step.max(1) as usize;
+    let (gw, gh) = (w.div_ceil(step) + 1, h.div_ceil(step) + 1);
+    // Sparse grid: pixel (gx·step, gy·step), clamped to the image.
+    let grid_px = |gx: usize, gy: usize| ((gx * step).min(w - 1), (gy * step).min(h - 1));
+    let grid: Vec<Option<(AoPoint, f32)>> = (0..gw * gh)
+        .into_par_iter()
+        .map(|g| {
+            let (x, y) = grid_px(g % gw, g / gw);
+            points[y * w + x].map(|pt| (pt, ao_at(scene, bvh, &pt, dirs, radius)))
+        })
+        .collect();
+    // Same surface: normals agree and the depth difference is small.
+    let same =
+        |q: &AoPoint, pt: &AoPoint| q.n.dot(pt.n) > 0.95 && (q.depth - pt.depth).abs() <= 0.02 * pt.depth.max(q.depth);
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let Some(pt) = points[i] else { return 1.0 };
+            let (x, y) = (i % w, i / w);
+            let (gx, gy) = (x / step, y / step);
+            let (fx, fy) = ((x - gx * step) as f32 / step as f32, (y - gy * step) as f32 / step as f32);
+            // Bilinear over the four surrounding grid points that lie on this pixel's surface.
+            let mut sum = 0.0;
+            let mut wsum = 0.0;
+            for (dx, dy, bw) in
+                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
+            {
+                if let Some((q, ao)) = grid[(gy + dy) * gw + gx + dx] {
+                    if same(&q, &pt) {
+                        let bw = bw.max(1e-3);
+                        sum += bw * ao;
+                        wsum += bw;
+                    }
+                }
+            }
+            if wsum > 0.0 {
+                return sum / wsum;
+            }
+            // Else the nearest matching grid point of the next ring; else evaluate directly.
+            let mut best: Option<(usize, f32)> = None;
+            for ny in gy.saturating_sub(1)..(gy + 3).min(gh) {
+                for nx in gx.saturating_sub(1)..(gx + 3).min(gw) {
+                    if let Some((q, ao)) = grid[ny * gw + nx] {
+                        let (qx, qy) = grid_px(nx, ny);
+                        let d2 = (qx as i64 - x as i64).pow(2) + (qy as i64 - y as i64).pow(2);
+                        if same(&q, &pt) && best.is_none_or(|(b, _)| (d2 as usize) < b) {
+                            best = Some((d2 as usize, ao));
+                        }
+                    }
+                }
+            }
+            match best {
+                Some((_, ao)) => ao,
+                None => ao_at(scene, bvh, &pt, dirs, radius),
+            }
+        })
+        .collect()
+}

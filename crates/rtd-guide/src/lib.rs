@@ -1,0 +1,223 @@
+//! rtd's guide pass: a cheap, noise-free picture of what the scene is made of.
+//!
+//! [`GuidePass::render`] rasterises the scene through the beauty's camera (same resolution, same
+//! tent pixel filter) and shades each sample with the path tracer's own albedo and shading-normal
+//! code, then adds ambient occlusion through the BVH. Its layers are `albedo`, `normal` (world,
+//! after normal maps), `depth` (camera-space distance), `ao`, and `guide` = albedo × AO, the
+//! "material render with AO" of the seed thesis.
+
+mod ao;
+pub mod raster;
+
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use rtd_image::{HdrImage, Layers};
+use rtd_render::surface::{shading_normal, Surface};
+use rtd_render::{RenderError, RenderSettings, SceneBvh};
+use rtd_scene::{Camera, Projection, Scene};
+
+pub use ao::{ao_at, pattern, AoPoint};
+
+/// Options of the guide pass, builder style: `GuideSettings::new(w, h).ao_rays(64)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuideSettings {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Occlusion rays per AO evaluation.
+    pub ao_rays: u32,
+    /// AO radius in scene units; None: 10% of the scene's bounding-box diagonal.
+    pub ao_radius: Option<f32>,
+    /// AO is evaluated directly every `ao_step` pixels and interpolated in between.
+    pub ao_step: u32,
+    /// Worker threads (None: rayon's default).
+    pub threads: Option<usize>,
+}
+
+impl GuideSettings {
+    /// Defaults for a `width`×`height` guide: 24 AO rays every 4th pixel, radius 10% of the scene.
+    pub fn new(width: u32, height: u32) -> Self {
+        GuideSettings { width, height, ao_rays: 24, ao_radius: None, ao_step: 4, threads: None }
+    }
+    /// Sets the AO ray count.
+    pub fn ao_rays(mut self, n: u32) -> Self {
+        self.ao_rays = n.max(1);
+        self
+    }
+    /// Sets the AO radius.
+    pub fn ao_radius(mut self, r: Option<f32>) -> Self {
+        self.ao_radius = r;
+        self
+    }
+    /// Sets the sparse AO step (1 evaluates every pixel).
+    pub fn ao_step(mut self, s: u32) -> Self {
+        self.ao_step = s.max(1);
+        self
+    }
+    /// Sets the thread count.
+    pub fn threads(mut self, t: Option<usize>) -> Self {
+        self.threads = t;
+        self
+    }
+}
+
+/// One pixel's filtered guide values and its centre sample's surface point.
+#[derive(Debug, Clone, Copy, Default)]
+struct Shaded {
+    albedo: Vec3,
+    normal: Vec3,
+    depth: f32,
+    centre: Option<AoPoint>,
+}
+
+/// Camera-space distance of `p` as the path tracer's depth AOV defines it.
+#[inline]
+fn camera_depth(camera: &Camera, p: Vec3) -> f32 {
+    match camera.projection {
+        Projection::Perspective { .. } => (p - camera.position).length(),
+        Projection::Orthographic { .. } => (p - camera.position).dot(camera.forward),
+    }
+}
+
+/// The AO point of a centre sample, looking out of the side the camera sees.
+#[inline]
+fn ao_point(camera: &Camera, t: &rtd_scene::Triangle, b: Vec3, p: Vec3, ng: Vec3, depth: f32) -> AoPoint {
+    let view = match camera.projection {
+        Projection::Perspective { .. } => camera.position - p,
+        Projection::Orthographic { .. } => -camera.forward,
+    };
+    let n = if ng.dot(view) < 0.0 { -ng } else { ng };
+    AoPoint { p, p_error: Surface::error_bound(t, b), n, depth }
+}
+
+/// Fast path for the common pixel: every sample on one untextured triangle with flat normals.
+/// Albedo and normal are then constant over the pixel, so one evaluation is exact; depth is
+/// taken at the mean barycentric, which differs from the mean depth only at second order.
+#[inline]
+fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<raster::SampleHit>]) -> Option<Shaded> {
+    let first = px[0]?;
+    if px.iter().any(|h| h.is_none_or(|h| h.triangle != first.triangle)) {
+        return None;
+    }
+    let t = &scene.triangles[first.triangle as usize];
+    let m = &scene.materials[t.material as usize];
+    if m.base_color_texture.is_some() || m.normal_texture.is_some() || t.n[0] != t.n[1] || t.n[1] != t.n[2] {
+        return None;
+    }
+    let ng = front[first.triangle as usize];
+    let mean_b = px.iter().map(|h| h.map(|h| h.bary).unwrap_or_default()).sum::<Vec3>() / px.len() as f32;
+    let p_mean = t.p[0] * mean_b.x + t.p[1] * mean_b.y + t.p[2] * mean_b.z;
+    let centre = px[raster::SAMPLES / 2]?.bary;
+    let p_centre = t.p[0] * centre.x + t.p[1] * centre.y + t.p[2] * centre.z;
+    Some(Shaded {
+        albedo: m.albedo(&scene.textures, Vec2::ZERO),
+        normal: shading_normal(t, mean_b, ng, None),
+        depth: camera_depth(camera, p_mean),
+        centre: Some(ao_point(camera, t, centre, p_centre, ng, camera_depth(camera, p_centre))),
+    })
+}
+
+/// The guide layers of one view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuidePass {
+    /// Base colour × texture (tent-filtered).
+    pub albedo: HdrImage,
+    /// World-space shading normal (tent-filtered, not renormalised at edges).
+    pub normal: HdrImage,
+    /// Camera-space distance (0 where nothing is hit).
+    pub depth: Vec<f32>,
+    /// Ambient occlusion in [0,1] (1 where nothing is hit).
+    pub ao: Vec<f32>,
+    /// albedo × AO.
+    pub guide: HdrImage,
+    /// Seconds the pass took (excluding scene loading and BVH build).
+    pub seconds: f64,
+}
+
+impl GuidePass {
+    /// Renders the guide layers of `scene` (with its BVH) through `camera`.
+    pub fn render(
+        scene: &Scene,
+        bvh: &SceneBvh,
+        camera: &Camera,
+        settings: &GuideSettings,
+    ) -> Result<Self, RenderError> {
+        RenderSettings::new(settings.width, settings.height).threads(settings.threads).validate()?;
+        let pool = match settings.threads {
+            Some(n) => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .map_err(|e| RenderError::InvalidSettings(e.to_string()))?,
+            ),
+            None => None,
+        };
+        let run = || Self::render_inner(scene, bvh, camera, settings);
+        Ok(match pool {
+            Some(p) => p.install(run),
+            None => run(),
+        })
+    }
+
+    fn render_inner(scene: &Scene, bvh: &SceneBvh, camera: &Camera, settings: &GuideSettings) -> Self {
+        let start = Instant::now();
+        let (w, h) = (settings.width, settings.height);
+        let n = raster::SAMPLES;
+        let inv = 1.0 / n as f32;
+        let front: Vec<Vec3> = scene.triangles.par_iter().map(|t| t.front_normal()).collect();
+        // Shade every sample with the renderer's surface code; keep the centre sample for AO.
+        let shaded: Vec<Shaded> = raster::rasterize(scene, camera, w, h, |px| {
+            let mut out = Shaded::default();
+            if let Some(fast) = shade_uniform(scene, camera, &front, px) {
+                return fast;
+            }
+            for (s, hit) in px.iter().enumerate() {
+                let Some(hit) = hit else { continue };
+                let t = &scene.triangles[hit.triangle as usize];
+                let b = hit.bary;
+                let m = &scene.materials[t.material as usize];
+                let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+                let p = t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
+                let ng = front[hit.triangle as usize];
+                let d = camera_depth(camera, p);
+                out.albedo += m.albedo(&scene.textures, uv) * inv;
+                out.normal += shading_normal(t, b, ng, m.tangent_normal(&scene.textures, uv)) * inv;
+                out.depth += d * inv;
+                if s == n / 2 {
+                    out.centre = Some(ao_point(camera, t, b, p, ng, d));
+                }
+            }
+            out
+        });
+        let points: Vec<Option<AoPoint>> = shaded.iter().map(|s| s.centre).collect();
+        let bounds = scene.bounds();
+        let radius =
+            settings.ao_radius.unwrap_or(if bounds.is_empty() { 1.0 } else { 0.1 * bounds.diagonal().length() });
+        let dirs = pattern(settings.ao_rays);
+        let ao = ao::ao_image(scene, bvh, &points, w, h, &dirs, radius, settings.ao_step);
+        let albedo = HdrImage::from_pixels(w, h, shaded.iter().map(|s| s.albedo).collect());
+        let normal = HdrImage::from_pixels(w, h, shaded.iter().map(|s| s.normal).collect());
+        let depth = shaded.iter().map(|s| s.depth).collect();
+        let guide = HdrImage::from_pixels(w, h, albedo.pixels.iter().zip(&ao).map(|(a, o)| *a * *o).collect());
+        GuidePass { albedo, normal, depth, ao, guide, seconds: start.elapsed().as_secs_f64() }
+    }
+
+    /// The EXR channels: `guide.R/G/B`, `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`, `ao.Y`.
+    pub fn layers(&self) -> Layers {
+        let mut l = Layers::new(self.albedo.width, self.albedo.height);
+        self.add_to(&mut l);
+        l
+    }
+
+    /// Adds (or replaces) this pass's channels in `layers`, which must be the same size.
+    pub fn add_to(&self, layers: &mut Layers) {
+        layers.push_rgb("guide", &self.guide);
+        layers.push_rgb("albedo", &self.albedo);
+        layers.push_xyz("normal", &self.normal);
+        layers.push("depth.Z", self.depth.clone());
+        layers.push("ao.Y", self.ao.clone());
+    }
+}

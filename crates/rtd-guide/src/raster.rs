@@ -1,0 +1,308 @@
+//! A tiled, multi-sampled triangle rasteriser producing a visibility buffer.
+//!
+//! Triangles are moved to camera space, clipped against the near plane (clipped vertices keep
+//! barycentrics of the original triangle), projected, and binned into tiles. Each tile is
+//! rasterised independently with a z-buffer per sample, so tiles run in parallel and the result
+//! never depends on the thread count. Each pixel has a fixed set of sample positions drawn from the
+//! same tent filter that the path tracer importance-samples, so edges line up with the beauty.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use rtd_scene::{AlphaMode, Camera, Projection, Scene};
+
+/// Tile side in pixels.
+pub const TILE: u32 = 16;
+/// Samples per pixel side: the pixel takes SAMPLES_1D² samples.
+pub const SAMPLES_1D: usize = 3;
+/// Samples per pixel.
+pub const SAMPLES: usize = SAMPLES_1D * SAMPLES_1D;
+
+/// Sample offsets from the pixel centre: stratum centres of the tent filter's CDF (radius 1 px),
+/// the deterministic counterpart of the path tracer's importance-sampled tent.
+pub fn sample_offsets() -> [Vec2; SAMPLES] {
+    let tent = |u: f32| if u < 0.5 { (2.0 * u).sqrt() - 1.0 } else { 1.0 - (2.0 - 2.0 * u).sqrt() };
+    let mut out = [Vec2::ZERO; SAMPLES];
+    for j in 0..SAMPLES_1D {
+        for i in 0..SAMPLES_1D {
+            let u = (i as f32 + 0.5) / SAMPLES_1D as f32;
+            let v = (j as f32 + 0.5) / SAMPLES_1D as f32;
+            out[j * SAMPLES_1D + i] = Vec2::new(tent(u), tent(v));
+        }
+    }
+    out
+}
+
+/// What one sample sees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleHit {
+    /// Scene triangle index.
+    pub triangle: u32,
+    /// Barycentrics in the original triangle.
+    pub bary: Vec3,
+}
+
+/// A projected, clipped triangle.
+#[derive(Debug, Clone, Copy)]
+struct ScreenTri {
+    /// Screen x, y in pixels and the depth key (1/z for perspective, z for orthographic).
+    v: [Vec3; 3],
+    /// 1/z per vertex for perspective-correct interpolation (1 for orthographic).
+    w: [f32; 3],
+    /// Barycentrics of each vertex in the original triangle.
+    b: [Vec3; 3],
+    triangle: u32,
+}
+
+/// Camera-space coordinates (x right, y up, z forward) of a world point.
+#[inline]
+fn to_camera(cam: &Camera, p: Vec3) -> Vec3 {
+    let d = p - cam.position;
+    Vec3::new(d.dot(cam.right), d.dot(cam.up), d.dot(cam.forward))
+}
+
+/// Clips a camera-space polygon against z ≥ near (Sutherland–Hodgman), carrying barycentrics.
+fn clip_near(poly: &[(Vec3, Vec3)], near: f32) -> Vec<(Vec3, Vec3)> {
+    let mut out = Vec::with_capacity(4);
+    for i in 0..poly.len() {
+        let (a, ba) = poly[i];
+        let (b, bb) = poly[(i + 1) % poly.len()];
+        let (ina, inb) = (a.z >= near, b.z >= near);
+        if ina {
+            out.push((a, ba));
+        }
+        if ina != inb {
+            let t = (near - a.z) / (b.z - a.z);
+            out.push((a.lerp(b, t), ba.lerp(bb, t)));
+        }
+    }
+    out
+}
+
+/// Projects and clips every triangle (alpha-blended ones too: they are drawn as opaque, like the
+/// path tracer's first-hit AOVs).
+fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec<ScreenTri> {
+    let aspect = width as f32 / height as f32;
+    let (sx, sy, persp) = match cam.projection {
+        Projection::Perspective { yfov } => {
+            let t = (yfov * 0.5).tan();
+            (1.0 / (t * aspect), 1.0 / t, true)
+        }
+        Projection::Orthographic { ymag } => (1.0 / (ymag * aspect), 1.0 / ymag, false),
+    };
+    let to_screen = |c: Vec3| -> (Vec3, f32) {
+        let (nx, ny, w) = if persp { (c.x * sx / c.z, c.y * sy / c.z, 1.0 / c.z) } else { (c.x * sx, c.y * sy, 1.0) };
+        let key = if persp { 1.0 / c.z } else { -c.z };
+        (Vec3::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32, key), w)
+    };
+    let mut out = Vec::with_capacity(scene.triangles.len());
+    for (i, t) in scene.triangles.iter().enumerate() {
+        let c = t.p.map(|p| to_camera(cam, p));
+        let base = [(c[0], Vec3::X), (c[1], Vec3::Y), (c[2], Vec3::Z)];
+        // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there).
+        let near = if persp { near } else { 0.0 };
+        if c.iter().all(|v| v.z < near) {
+            continue;
+        }
+        let poly = if c.iter().all(|v| v.z >= near) { base.to_vec() } else { clip_near(&base, near) };
+        if poly.len() < 3 {
+            continue;
+        }
+        let proj: Vec<(Vec3, f32, Vec3)> = poly
+            .iter()
+            .map(|&(c, b)| {
+                let (s, w) = to_screen(c);
+                (s, w, b)
+            })
+            .collect();
+        // Fan-triangulate the clipped polygon (3 or 4 vertices).
+        for k in 1..proj.len() - 1 {
+            let tri = [proj[0], proj[k], proj[k + 1]];
+            let v = tri.map(|x| x.0);
+            if !v.iter().all(|p| p.is_finite()) {
+                continue;
+            }
+            out.push(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2), triangle: i as u32 });
+        }
+    }
+    out
+}
+
+/// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
+/// see; returns the shaded pixels row-major. Tiles are independent, so `shade` runs in parallel
+/// and only per-pixel results leave a tile.
+pub fn rasterize<T, F>(scene: &Scene, cam: &Camera, width: u32, height: u32, shade: F) -> Vec<T>
+where
+    T: Send + Clone + Default,
+    F: Fn(&[Option<SampleHit>]) -> T + Sync,
+{
+    let bounds = scene.bounds();
+    let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
+    // The near plane sits far enough in front of the eye to keep 1/z well conditioned.
+    let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
+    let near = (far * 1e-6).max(f32::MIN_POSITIVE);
+    let tris = setup(scene, cam, width, height, near);
+    let offsets = sample_offsets();
+    let tiles_x = width.div_ceil(TILE);
+    let tiles_y = height.div_ceil(TILE);
+    // Bin each triangle into the tiles its bounding box (grown by the 1-px filter radius) touches.
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
+    for (i, t) in tris.iter().enumerate() {
+        let lo = t.v[0].min(t.v[1]).min(t.v[2]);
+        let hi = t.v[0].max(t.v[1]).max(t.v[2]);
+        if hi.x < -1.0 || hi.y < -1.0 || lo.x > width as f32 + 1.0 || lo.y > height as f32 + 1.0 {
+            continue;
+        }
+        let tx0 = ((lo.x - 1.0).max(0.0) as u32 / TILE).min(tiles_x - 1);
+        let ty0 = ((lo.y - 1.0).max(0.0) as u32 / TILE).min(tiles_y - 1);
+        let tx1 = (((hi.x + 1.0).max(0.0) as u32) / TILE).min(tiles_x - 1);
+        let ty1 = (((hi.y + 1.0).max(0.0) as u32) / TILE).min(tiles_y - 1);
+        for ty in ty0..=ty1 {
+            for tx in tx0..=tx1 {
+                bins[(ty * tiles_x + tx) as usize].push(i as u32);
+            }
+        }
+    }
+    // One job per row of tiles, writing straight into its rows of the output.
+    let mut out = vec![T::default(); width as usize * height as usize];
+    out.par_chunks_mut(width as usize * TILE as usize).enumerate().for_each(|(ty, rows)| {
+        let y0 = ty as u32 * TILE;
+        let th = TILE.min(height - y0) as usize;
+        let mut depth = vec![f32::NEG_INFINITY; TILE as usize * TILE as usize * SAMPLES];
+        let mut hits: Vec<Option<SampleHit>> = vec![None; TILE as usize * TILE as usize * SAMPLES];
+        for tx in 0..tiles_x {
+            let x0 = tx * TILE;
+            let tw = TILE.min(width - x0) as usize;
+            let n = tw * th * SAMPLES;
+            depth[..n].fill(f32::NEG_INFINITY);
+            hits[..n].fill(None);
+            for &i in &bins[(ty as u32 * tiles_x + tx) as usize] {
+                raster_tri(scene, &tris[i as usize], x0, y0, tw, th, &offsets, &mut depth[..n], &mut hits[..n]);
+            }
+            for (k, px) in hits[..n].chunks(SAMPLES).enumerate() {
+                rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(px);
+            }
+        }
+    });
+    out
+}
+
+/// Rasterises one triangle into a tile's sample buffers (greater depth key wins; ties keep the first).
+#[allow(clippy::too_many_arguments)]
+fn raster_tri(
+    scene: &Scene,
+    t: &ScreenTri,
+    x0: u32,
+    y0: u32,
+    tw: usize,
+    th: usize,
+    offsets: &[Vec2; SAMPLES],
+    depth: &mut [f32],
+    hits: &mut [Option<SampleHit>],
+) {
+    let [a, b, c] = t.v;
+    // Edge functions as planes e(p) = A·(x − x0) + B·(y − y0) + C over the tile, set up in f64
+    // (clipped vertices can project far off screen) and normalised by twice the signed area:
+    // e0, e1, e2 are the screen-space barycentrics of vertices a, b, c. Either winding is drawn.
+    let (ax, ay, bx, by, cx, cy) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64);
+    let area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+    if area == 0.0 || !area.is_finite() {
+        return;
+    }
+    let (ox, oy) = (x0 as f64, y0 as f64);
+    let plane = |px: f64, py: f64, qx: f64, qy: f64| {
+        let (ea, eb) = ((py - qy) / area, (qx - px) / area);
+        let ec = (px * qy - py * qx) / area + ea * ox + eb * oy;
+        (ea as f32, eb as f32, ec as f32)
+    };
+    let (a0, b0, c0) = plane(bx, by, cx, cy);
+    let (a1, b1, c1) = plane(cx, cy, ax, ay);
+    // Depth key is affine in screen space: key = c.z + e0·(a.z − c.z) + e1·(b.z − c.z).
+    let (ka, kb) = (a.z - c.z, b.z - c.z);
+    // Reject the tile when one edge is negative everywhere samples can lie: x ∈ [−1, tw+1],
+    // y ∈ [−1, th+1] in tile coordinates (pixel centres ± the filter radius).
+    let (w, h) = (tw as f32 + 1.0, th as f32 + 1.0);
+    let max_over = |ea: f32, eb: f32, ec: f32| ec + (ea * w).max(-ea) + (eb * h).max(-eb);
+    if max_over(a0, b0, c0) < 0.0 || max_over(a1, b1, c1) < 0.0 || max_over(-(a0 + a1), -(b0 + b1), 1.0 - c0 - c1) < 0.0
+    {
+        return;
+    }
+    let lo = a.min(b).min(c);
+    let hi = a.max(b).max(c);
+    let px0 = ((lo.x - 1.5).floor().max(x0 as f32) as usize).saturating_sub(x0 as usize);
+    let py0 = ((lo.y - 1.5).floor().max(y0 as f32) as usize).saturating_sub(y0 as usize);
+    let px1 = (((hi.x + 1.5).ceil() - x0 as f32).max(0.0) as usize).min(tw);
+    let py1 = (((hi.y + 1.5).ceil() - y0 as f32).max(0.0) as usize).min(th);
+    let material = &scene.materials[scene.triangles[t.triangle as usize].material as usize];
+    let cutoff = match material.alpha_mode {
+        AlphaMode::Mask(c) => Some(c),
+        _ => None,
+    };
+    // Per-sample offsets of the two edge functions from the pixel centre.
+    let d0: [f32; SAMPLES] = std::array::from_fn(|s| a0 * offsets[s].x + b0 * offsets[s].y);
+    let d1: [f32; SAMPLES] = std::array::from_fn(|s| a1 * offsets[s].x + b1 * offsets[s].y);
+    for py in py0..py1 {
+        for px in px0..px1 {
+            let (cxp, cyp) = (px as f32 + 0.5, py as f32 + 0.5);
+            let e0c = a0 * cxp + b0 * cyp + c0;
+            let e1c = a1 * cxp + b1 * cyp + c1;
+            for s in 0..SAMPLES {
+                let (e0, e1) = (e0c + d0[s], e1c + d1[s]);
+                let e2 = 1.0 - e0 - e1;
+                if e0 < 0.0 || e1 < 0.0 || e2 < 0.0 {
+                    continue;
+                }
+                let key = c.z + e0 * ka + e1 * kb;
+                let k = (py * tw + px) * SAMPLES + s;
+                if !(key > depth[k]) {
+                    continue;
+                }
+                // Perspective-correct weights of the three screen vertices.
+                let (w0, w1, w2) = (e0 * t.w[0], e1 * t.w[1], e2 * t.w[2]);
+                let sum = w0 + w1 + w2;
+                if !(sum > 0.0) {
+                    continue;
+                }
+                let bary = (t.b[0] * w0 + t.b[1] * w1 + t.b[2] * w2) / sum;
+                if let Some(cut) = cutoff {
+                    let tri = &scene.triangles[t.triangle as usize];
+                    let uv = tri.uv[0] * bary.x + tri.uv[1] * bary.y + tri.uv[2] * bary.z;
+                    if material.alpha(&scene.textures, uv) < cut {
+                        continue;
+                    }
+                }
+                depth[k] = key;
+                hits[k] = Some(SampleHit { triangle: t.triangle, bary });
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_follow_the_tent() {
+        let o = sample_offsets();
+        assert_eq!(o[SAMPLES / 2], Vec2::ZERO, "the centre sample is the pixel centre");
+        assert!(o.iter().all(|v| v.x.abs() < 1.0 && v.y.abs() < 1.0));
+        let mean: Vec2 = o.iter().copied().sum::<Vec2>() / SAMPLES as f32;
+        assert!(mean.length() < 1e-6);
+    }
+
+    #[test]
+    fn near_clipping_keeps_barycentrics() {
+        let poly = [
+            (Vec3::new(0.0, 0.0, -1.0), Vec3::X),
+            (Vec3::new(0.0, 1.0, 1.0), Vec3::Y),
+            (Vec3::new(1.0, 0.0, 1.0), Vec3::Z),
+        ];
+        let out = clip_near(&poly, 0.0);
+        assert_eq!(out.len(), 4);
+        for (p, b) in out {
+            assert!(p.z >= -1e-6);
+            let back = poly[0].0 * b.x + poly[1].0 * b.y + poly[2].0 * b.z;
+            assert!((back - p).length() < 1e-6, "barycentrics must reproduce the clipped point");
+        }
+    }
+}

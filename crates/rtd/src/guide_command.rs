@@ -1,0 +1,68 @@
+//! `rtd guide`: the rasterised guide pass on its own.
+
+use anyhow::bail;
+use serde::Serialize;
+
+use rtd_guide::{GuidePass, GuideSettings};
+use rtd_image::{ImageFormat, Tonemap};
+
+use crate::args::GuideArgs;
+use crate::render_command::{check_output, check_report_path, prepare_view, write_json, PreparedView};
+
+/// What `rtd guide --report` writes.
+#[derive(Debug, Clone, Serialize)]
+pub struct GuideReport {
+    /// Scene file.
+    pub scene: String,
+    /// Output file.
+    pub output: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Scene loading seconds.
+    pub load_s: f64,
+    /// BVH build seconds.
+    pub bvh_s: f64,
+    /// The guide pass itself: rasterisation, shading and AO.
+    pub guide_s: f64,
+    /// Triangles in the scene.
+    pub triangles: usize,
+}
+
+/// Runs `rtd guide` and returns its report.
+pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
+    let view = &args.view;
+    check_output(&args.output)?;
+    if let Some(r) = &args.report {
+        check_report_path(r)?;
+    }
+    let PreparedView { scene: prepared, camera, load_s } = prepare_view(view, None)?;
+    let settings = GuideSettings::new(view.width, view.height)
+        .ao_rays(args.ao_rays)
+        .ao_radius(args.ao_radius)
+        .threads(view.threads.map(|t| t as usize));
+    let pass = GuidePass::render(&prepared.scene, &prepared.bvh, &camera, &settings)?;
+    match ImageFormat::from_path(&args.output)? {
+        ImageFormat::Exr => rtd_image::write_exr(&args.output, &pass.layers())?,
+        ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(&args.output, &pass.guide, 0.0, Tonemap::Clamp)?,
+    }
+    if !pass.guide.is_finite() {
+        bail!("internal error: the guide pass produced non-finite values");
+    }
+    let report = GuideReport {
+        scene: view.scene.display().to_string(),
+        output: args.output.display().to_string(),
+        width: view.width,
+        height: view.height,
+        load_s,
+        bvh_s: prepared.bvh_seconds,
+        guide_s: pass.seconds,
+        triangles: prepared.scene.triangles.len(),
+    };
+    println!("guide pass {}x{} in {:.3} s ({} triangles)", view.width, view.height, pass.seconds, report.triangles);
+    if let Some(path) = &args.report {
+        write_json(path, &report)?;
+    }
+    Ok(report)
+}
