@@ -4,7 +4,8 @@
 //! AO(p) = (1/π) ∫ V(p, ω, R) cosθ dω, the cosine-weighted fraction of the hemisphere around the
 //! camera-facing geometric normal that is free of geometry within radius R. The same direction
 //! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
-//! noise). Pixels whose sparse neighbours lie on other surfaces are evaluated directly.
+//! noise). Pixels whose sparse neighbours lie on other surfaces, or whose cell spans a steep
+//! change of AO, are evaluated directly.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -12,6 +13,9 @@ use rtd_render::sampling::{sample_cosine_hemisphere, Frame};
 use rtd_render::surface::offset_origin;
 use rtd_render::SceneBvh;
 use rtd_scene::Scene;
+
+/// A sparse cell whose AO values spread more than this is evaluated per pixel.
+const REFINE_SPREAD: f32 = 0.08;
 
 /// A surface point where AO is wanted.
 #[derive(Debug, Clone, Copy)]
@@ -87,37 +91,30 @@ pub fn ao_image(
             // Bilinear over the four surrounding grid points that lie on this pixel's surface.
             let mut sum = 0.0;
             let mut wsum = 0.0;
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            let (mut matched, mut available) = (0, 0);
             for (dx, dy, bw) in
                 [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
             {
                 if let Some((q, ao)) = grid[(gy + dy) * gw + gx + dx] {
+                    available += 1;
                     if same(&q, &pt) {
+                        matched += 1;
                         let bw = bw.max(1e-3);
                         sum += bw * ao;
                         wsum += bw;
+                        lo = lo.min(ao);
+                        hi = hi.max(ao);
                     }
                 }
             }
-            if wsum > 0.0 {
+            // Interpolate only inside one surface where AO varies gently; at surface boundaries
+            // (a corner on another surface) and where AO changes steeply across the cell (creases,
+            // contact shadows), evaluate this pixel directly.
+            if matched == available && wsum > 0.0 && hi - lo <= REFINE_SPREAD {
                 return sum / wsum;
             }
-            // Else the nearest matching grid point of the next ring; else evaluate directly.
-            let mut best: Option<(usize, f32)> = None;
-            for ny in gy.saturating_sub(1)..(gy + 3).min(gh) {
-                for nx in gx.saturating_sub(1)..(gx + 3).min(gw) {
-                    if let Some((q, ao)) = grid[ny * gw + nx] {
-                        let (qx, qy) = grid_px(nx, ny);
-                        let d2 = (qx as i64 - x as i64).pow(2) + (qy as i64 - y as i64).pow(2);
-                        if same(&q, &pt) && best.is_none_or(|(b, _)| (d2 as usize) < b) {
-                            best = Some((d2 as usize, ao));
-                        }
-                    }
-                }
-            }
-            match best {
-                Some((_, ao)) => ao,
-                None => ao_at(scene, bvh, &pt, dirs, radius),
-            }
+            ao_at(scene, bvh, &pt, dirs, radius)
         })
         .collect()
 }
