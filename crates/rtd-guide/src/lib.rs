@@ -94,8 +94,7 @@ fn ao_point(camera: &Camera, t: &rtd_scene::Triangle, b: Vec3, p: Vec3, ng: Vec3
 }
 
 /// Fast path for the common pixel: every sample on one untextured triangle with flat normals.
-/// Albedo and normal are then constant over the pixel, so one evaluation is exact; depth is
-/// taken at the mean barycentric, which differs from the mean depth only at second order.
+/// Albedo and normal are then constant over the pixel, so one evaluation is exact.
 #[inline]
 fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<raster::SampleHit>]) -> Option<Shaded> {
     let first = px[0]?;
@@ -108,14 +107,15 @@ fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<ra
         return None;
     }
     let ng = front[first.triangle as usize];
-    let mean_b = px.iter().map(|h| h.map(|h| h.bary).unwrap_or_default()).sum::<Vec3>() / px.len() as f32;
-    let p_mean = t.p[0] * mean_b.x + t.p[1] * mean_b.y + t.p[2] * mean_b.z;
+    let point = |b: Vec3| t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
+    // Depth is not affine over a pixel seen at a grazing angle: average it per sample.
+    let depth = px.iter().flatten().map(|h| camera_depth(camera, point(h.bary))).sum::<f32>() / px.len() as f32;
     let centre = px[raster::SAMPLES / 2]?.bary;
-    let p_centre = t.p[0] * centre.x + t.p[1] * centre.y + t.p[2] * centre.z;
+    let p_centre = point(centre);
     Some(Shaded {
         albedo: m.albedo(&scene.textures, Vec2::ZERO),
-        normal: shading_normal(t, mean_b, ng, None),
-        depth: camera_depth(camera, p_mean),
+        normal: shading_normal(t, first.bary, ng, None),
+        depth,
         centre: Some(ao_point(camera, t, centre, p_centre, ng, camera_depth(camera, p_centre))),
     })
 }
