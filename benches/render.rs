@@ -1,6 +1,7 @@
-//! Criterion benchmarks: BVH build, raw traversal rays/s, and full-render paths/s on the bundled
-//! scenes. After the criterion groups, one run measures the integrator's rays/s against raw
-//! closest-hit traversal on the same scene, so the integrator's overhead is visible as a ratio.
+//! Criterion benchmarks: BVH build, raw traversal rays/s, full-render paths/s and the guide pass
+//! on the bundled scenes. After the criterion groups, one run measures the integrator's rays/s
+//! against raw closest-hit traversal on the same scene (the integrator's overhead as a ratio),
+//! and the guide pass's time as a share of an 8-spp render from 256² to 4K.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -8,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, Criterion, Throughput};
 use glam::{Vec2, Vec3};
+use rtd::guide::{GuidePass, GuideSettings};
 use rtd::render::{PathTracer, RenderScene, RenderSettings, Sampler, SceneBvh};
 use rtd::scene::{load_scene, Scene};
 
@@ -72,7 +74,45 @@ fn render(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bvh_build, traversal, render);
+fn guide(c: &mut Criterion) {
+    let mut g = c.benchmark_group("guide_256x256");
+    g.sample_size(10);
+    for name in SCENES {
+        let s = scene(name);
+        let cam = s.select_camera(None).unwrap().0;
+        let bvh = SceneBvh::build(&s);
+        let settings = GuideSettings::new(256, 256);
+        g.throughput(Throughput::Elements(256 * 256));
+        g.bench_function(name, |b| b.iter(|| GuidePass::render(&s, &bvh, &cam, &settings).unwrap()));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bvh_build, traversal, render, guide);
+
+/// The guide pass's cost as a share of an 8-spp render of the same view (the bar is 5%),
+/// for every bundled scene at each resolution, measured back to back in one run.
+fn guide_share(resolutions: &[(u32, u32)], scenes: &[&str]) {
+    println!("| scene | resolution | render 8 spp (s) | guide (s) | guide / render |");
+    println!("|---|---|---|---|---|");
+    for &name in scenes {
+        let s = scene(name);
+        let cam = s.select_camera(None).unwrap().0;
+        let prepared = RenderScene::new(s);
+        for &(w, h) in resolutions {
+            let tracer = PathTracer::new(&prepared, cam.clone(), RenderSettings::new(w, h)).unwrap();
+            let mut film = tracer.film();
+            let stats = tracer.render(&mut film, 8).unwrap();
+            let g = GuidePass::render(&prepared.scene, &prepared.bvh, &cam, &GuideSettings::new(w, h)).unwrap();
+            println!(
+                "| {name} | {w}x{h} | {:.3} | {:.3} | {:.1}% |",
+                stats.seconds,
+                g.seconds,
+                100.0 * g.seconds / stats.seconds
+            );
+        }
+    }
+}
 
 /// Integrator rays/s against raw primary-ray traversal rays/s on the Cornell box, one run.
 fn overhead_ratio(seconds: f64) {
@@ -110,4 +150,9 @@ fn main() {
     // In `cargo test` mode criterion runs each benchmark once; keep the ratio run short there too.
     let quick = std::env::args().any(|a| a == "--test") || !std::env::args().any(|a| a == "--bench");
     overhead_ratio(if quick { 0.2 } else { 3.0 });
+    if quick {
+        guide_share(&[(64, 64)], &["cornell-box"]);
+    } else {
+        guide_share(&[(256, 256), (1024, 1024), (1920, 1080), (3840, 2160)], &SCENES);
+    }
 }

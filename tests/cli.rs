@@ -232,3 +232,47 @@ fn interrupt_keeps_finished_passes() {
     assert!(spp > 0 && spp < 1_000_000, "spp {spp}");
     assert!(rtd::image::read_exr(&out).unwrap().rgb("").unwrap().is_finite());
 }
+
+#[test]
+fn guide_writes_all_layers_png_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("g.exr");
+    let report = dir.path().join("g.json");
+    let c = cornell();
+    let o = rtd(&["guide", &c, "-o", exr.to_str().unwrap(), "--width", "32", "--height", "24", "--report", report.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let layers = rtd::image::read_exr(&exr).unwrap();
+    for ch in ["guide.R", "guide.G", "guide.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z", "ao.Y"] {
+        let v = layers.get(ch).unwrap_or_else(|| panic!("missing {ch}"));
+        assert!(v.iter().all(|x| x.is_finite()), "non-finite {ch}");
+    }
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(r["guide_s"].as_f64().unwrap() > 0.0);
+    let png = dir.path().join("g.png");
+    assert!(rtd(&["guide", &c, "-o", png.to_str().unwrap(), "--width", "16", "--height", "16"]).status.success());
+    assert!(rtd::image::read_ldr(&png).is_ok());
+    assert_fails(&rtd(&["guide", dir.path().join("none.gltf").to_str().unwrap(), "-o", png.to_str().unwrap()]), "none.gltf");
+    assert_fails(&rtd(&["guide", &c, "-o", dir.path().join("g.bmp").to_str().unwrap()]), "g.bmp");
+}
+
+#[test]
+fn render_with_aov_adds_the_guide_layers() {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("r.exr");
+    let report = dir.path().join("r.json");
+    let c = cornell();
+    let o = rtd(&["render", &c, "-o", exr.to_str().unwrap(), "--spp", "2", "--width", "24", "--height", "24", "--aov", "--report", report.to_str().unwrap(), "-q"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let layers = rtd::image::read_exr(&exr).unwrap();
+    for ch in ["R", "G", "B", "guide.R", "albedo.R", "normal.X", "depth.Z", "ao.Y"] {
+        assert!(layers.get(ch).is_some(), "missing {ch}");
+    }
+    // The albedo layer is the guide pass's: identical to what `rtd guide` writes.
+    let g = dir.path().join("g.exr");
+    assert!(rtd(&["guide", &c, "-o", g.to_str().unwrap(), "--width", "24", "--height", "24"]).status.success());
+    let gl = rtd::image::read_exr(&g).unwrap();
+    assert_eq!(layers.get("albedo.R"), gl.get("albedo.R"));
+    assert_eq!(layers.get("ao.Y"), gl.get("ao.Y"));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(r["guide_s"].as_f64().unwrap() > 0.0);
+}
