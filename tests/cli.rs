@@ -239,10 +239,24 @@ fn guide_writes_all_layers_png_and_report() {
     let exr = dir.path().join("g.exr");
     let report = dir.path().join("g.json");
     let c = cornell();
-    let o = rtd(&["guide", &c, "-o", exr.to_str().unwrap(), "--width", "32", "--height", "24", "--report", report.to_str().unwrap()]);
+    let o = rtd(&[
+        "guide",
+        &c,
+        "-o",
+        exr.to_str().unwrap(),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let layers = rtd::image::read_exr(&exr).unwrap();
-    for ch in ["guide.R", "guide.G", "guide.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z", "ao.Y"] {
+    for ch in [
+        "guide.R", "guide.G", "guide.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z",
+        "depth.Z", "ao.Y",
+    ] {
         let v = layers.get(ch).unwrap_or_else(|| panic!("missing {ch}"));
         assert!(v.iter().all(|x| x.is_finite()), "non-finite {ch}");
     }
@@ -251,7 +265,10 @@ fn guide_writes_all_layers_png_and_report() {
     let png = dir.path().join("g.png");
     assert!(rtd(&["guide", &c, "-o", png.to_str().unwrap(), "--width", "16", "--height", "16"]).status.success());
     assert!(rtd::image::read_ldr(&png).is_ok());
-    assert_fails(&rtd(&["guide", dir.path().join("none.gltf").to_str().unwrap(), "-o", png.to_str().unwrap()]), "none.gltf");
+    assert_fails(
+        &rtd(&["guide", dir.path().join("none.gltf").to_str().unwrap(), "-o", png.to_str().unwrap()]),
+        "none.gltf",
+    );
     assert_fails(&rtd(&["guide", &c, "-o", dir.path().join("g.bmp").to_str().unwrap()]), "g.bmp");
 }
 
@@ -261,7 +278,22 @@ fn render_with_aov_adds_the_guide_layers() {
     let exr = dir.path().join("r.exr");
     let report = dir.path().join("r.json");
     let c = cornell();
-    let o = rtd(&["render", &c, "-o", exr.to_str().unwrap(), "--spp", "2", "--width", "24", "--height", "24", "--aov", "--report", report.to_str().unwrap(), "-q"]);
+    let o = rtd(&[
+        "render",
+        &c,
+        "-o",
+        exr.to_str().unwrap(),
+        "--spp",
+        "2",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--aov",
+        "--report",
+        report.to_str().unwrap(),
+        "-q",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let layers = rtd::image::read_exr(&exr).unwrap();
     for ch in ["R", "G", "B", "guide.R", "albedo.R", "normal.X", "depth.Z", "ao.Y"] {

@@ -15,7 +15,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use rtd_image::{HdrImage, Layers};
 use rtd_render::surface::{shading_normal, Surface};
-use rtd_render::{RenderError, RenderSettings, SceneBvh};
+use rtd_render::{RenderError, RenderSettings, SceneBvh, Workers};
 use rtd_scene::{Camera, Projection, Scene};
 
 pub use ao::{ao_at, pattern, AoPoint};
@@ -146,20 +146,8 @@ impl GuidePass {
         settings: &GuideSettings,
     ) -> Result<Self, RenderError> {
         RenderSettings::new(settings.width, settings.height).threads(settings.threads).validate()?;
-        let pool = match settings.threads {
-            Some(n) => Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(n)
-                    .build()
-                    .map_err(|e| RenderError::InvalidSettings(e.to_string()))?,
-            ),
-            None => None,
-        };
-        let run = || Self::render_inner(scene, bvh, camera, settings);
-        Ok(match pool {
-            Some(p) => p.install(run),
-            None => run(),
-        })
+        let workers = Workers::new(settings.threads)?;
+        Ok(workers.install(|| Self::render_inner(scene, bvh, camera, settings)))
     }
 
     fn render_inner(scene: &Scene, bvh: &SceneBvh, camera: &Camera, settings: &GuideSettings) -> Self {

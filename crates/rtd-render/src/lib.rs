@@ -21,7 +21,8 @@ pub use bvh::SceneBvh;
 pub use film::Film;
 pub use lights::LightSet;
 pub use render::{
-    PathTracer, RenderObserver, RenderScene, RenderSettings, RenderStats, Silent, MAX_RESOLUTION, MAX_SPP,
+    PathTracer, RenderObserver, RenderScene, RenderSettings, RenderStats, Silent, Workers, MAX_PIXELS, MAX_RESOLUTION,
+    MAX_SPP,
 };
 pub use sampler::Sampler;
 

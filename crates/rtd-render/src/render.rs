@@ -152,22 +152,49 @@ pub struct PathTracer<'a> {
     scene: &'a RenderScene,
     camera: Camera,
     settings: RenderSettings,
-    pool: Option<rayon::ThreadPool>,
+    pool: Workers,
+}
+
+/// The threads a render runs on: a dedicated rayon pool of a fixed size, or rayon's global pool.
+pub struct Workers(Option<rayon::ThreadPool>);
+
+impl Workers {
+    /// A pool of `threads` workers (None: the global pool).
+    pub fn new(threads: Option<usize>) -> Result<Self, RenderError> {
+        match threads {
+            Some(n) => rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map(|p| Workers(Some(p)))
+                .map_err(|e| RenderError::InvalidSettings(e.to_string())),
+            None => Ok(Workers(None)),
+        }
+    }
+
+    /// Runs `f` on these workers.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.0 {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+}
+
+impl RenderStats {
+    /// Adds one finished pass's counters.
+    fn add_pass(&mut self, pass: &RenderStats) {
+        self.paths += pass.paths;
+        self.rays += pass.rays;
+        self.nonfinite_samples += pass.nonfinite_samples;
+        self.spp += pass.spp;
+    }
 }
 
 impl<'a> PathTracer<'a> {
     /// A path tracer; fails on invalid settings.
     pub fn new(scene: &'a RenderScene, camera: Camera, settings: RenderSettings) -> Result<Self, RenderError> {
         settings.validate()?;
-        let pool = match settings.threads {
-            Some(n) => Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(n)
-                    .build()
-                    .map_err(|e| RenderError::InvalidSettings(e.to_string()))?,
-            ),
-            None => None,
-        };
+        let pool = Workers::new(settings.threads)?;
         Ok(PathTracer { scene, camera, settings, pool })
     }
 
@@ -200,11 +227,7 @@ impl<'a> PathTracer<'a> {
             if observer.cancelled() {
                 break;
             }
-            let pass = self.pass(film, observer);
-            stats.paths += pass.paths;
-            stats.rays += pass.rays;
-            stats.nonfinite_samples += pass.nonfinite_samples;
-            stats.spp += 1;
+            stats.add_pass(&self.pass(film, observer));
         }
         stats.seconds = start.elapsed().as_secs_f64();
         Ok(stats)
@@ -233,10 +256,7 @@ impl<'a> PathTracer<'a> {
             let t = Instant::now();
             let pass = self.pass(film, observer);
             slowest = slowest.max(t.elapsed().as_secs_f64());
-            stats.paths += pass.paths;
-            stats.rays += pass.rays;
-            stats.nonfinite_samples += pass.nonfinite_samples;
-            stats.spp += 1;
+            stats.add_pass(&pass);
         }
         stats.seconds = start.elapsed().as_secs_f64();
         Ok(stats)
@@ -254,10 +274,7 @@ impl<'a> PathTracer<'a> {
 
     /// One sample per pixel over the whole image.
     fn pass(&self, film: &mut Film, observer: &dyn RenderObserver) -> RenderStats {
-        match &self.pool {
-            Some(pool) => pool.install(|| self.pass_inner(film, observer)),
-            None => self.pass_inner(film, observer),
-        }
+        self.pool.install(|| self.pass_inner(film, observer))
     }
 
     fn pass_inner(&self, film: &mut Film, observer: &dyn RenderObserver) -> RenderStats {
