@@ -308,3 +308,56 @@ fn render_with_aov_adds_the_guide_layers() {
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert!(r["guide_s"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn environment_map_from_exr() {
+    let dir = tempfile::tempdir().unwrap();
+    // A sky that is bright above the horizon and dark below.
+    let (w, h) = (32u32, 16u32);
+    let sky = rtd::image::HdrImage::from_pixels(
+        w,
+        h,
+        (0..w * h)
+            .map(|i| if i / w < h / 2 { glam::Vec3::new(2.0, 2.0, 3.0) } else { glam::Vec3::splat(0.05) })
+            .collect(),
+    );
+    let mut layers = rtd::image::Layers::new(w, h);
+    layers.push_rgb("", &sky);
+    let sky_path = dir.path().join("sky.exr");
+    rtd::image::write_exr(&sky_path, &layers).unwrap();
+    let obj = dir.path().join("p.obj");
+    std::fs::write(dir.path().join("p.mtl"), "newmtl lambert\nKd 0.8 0.8 0.8\nKs 0 0 0\n").unwrap();
+    std::fs::write(
+        &obj,
+        "mtllib p.mtl\nusemtl lambert\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvn 0 1 0\nf 1//1 4//1 3//1 2//1\n",
+    )
+    .unwrap();
+    let out = dir.path().join("e.exr");
+    let o = rtd(&[
+        "render",
+        obj.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--env",
+        sky_path.to_str().unwrap(),
+        "--spp",
+        "16",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--look-from",
+        "0,3,0.01",
+        "--look-at",
+        "0,0,0",
+        "--fov",
+        "20",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A Lambertian floor of albedo 0.8 under a uniform upper sky of radiance (2, 2, 3) reflects
+    // L = 0.8 · (2, 2, 3); the dark lower half cannot reach its upper side.
+    let img = rtd::image::read_exr(&out).unwrap().rgb("").unwrap();
+    let m = img.mean();
+    assert!((m.x - 1.6).abs() < 0.08 && (m.z - 2.4).abs() < 0.12, "floor radiance {m}");
+}
