@@ -4,8 +4,8 @@
 //! AO(p) = (1/π) ∫ V(p, ω, R) cosθ dω, the cosine-weighted fraction of the hemisphere around the
 //! camera-facing geometric normal that is free of geometry within radius R. The same direction
 //! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
-//! noise). Pixels whose sparse neighbours lie on other surfaces, or whose cell spans a steep
-//! change of AO, are evaluated directly.
+//! noise). Pixels where surfaces meet (a neighbour on another surface at a similar depth), whose
+//! cell spans a steep change of AO, or with no neighbour on their surface are evaluated directly.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -92,14 +92,16 @@ pub fn ao_image(
             let mut sum = 0.0;
             let mut wsum = 0.0;
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            let (mut matched, mut available) = (0, 0);
+            // A corner on another surface at a similar depth means the surfaces meet here (a
+            // crease or contact), where AO changes steeply.
+            let mut touching = false;
             for (dx, dy, bw) in
                 [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
             {
                 if let Some((q, ao)) = grid[(gy + dy) * gw + gx + dx] {
-                    available += 1;
-                    if same(&q, &pt) {
-                        matched += 1;
+                    if !same(&q, &pt) {
+                        touching |= (q.depth - pt.depth).abs() <= 0.1 * pt.depth.max(q.depth);
+                    } else {
                         let bw = bw.max(1e-3);
                         sum += bw * ao;
                         wsum += bw;
@@ -108,10 +110,10 @@ pub fn ao_image(
                     }
                 }
             }
-            // Interpolate only inside one surface where AO varies gently; at surface boundaries
-            // (a corner on another surface) and where AO changes steeply across the cell (creases,
-            // contact shadows), evaluate this pixel directly.
-            if matched == available && wsum > 0.0 && hi - lo <= REFINE_SPREAD {
+            // Interpolate from the corners on this surface where AO varies gently. Where surfaces
+            // meet, or AO changes steeply across the cell, evaluate this pixel directly. (At a
+            // silhouette the other surface lies far behind and does not affect this one's AO.)
+            if !touching && wsum > 0.0 && hi - lo <= REFINE_SPREAD {
                 return sum / wsum;
             }
             ao_at(scene, bvh, &pt, dirs, radius)
