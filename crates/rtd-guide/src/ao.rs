@@ -4,7 +4,7 @@
 //! AO(p) = (1/π) ∫ V(p, ω, R) cosθ dω, the cosine-weighted fraction of the hemisphere around the
 //! camera-facing geometric normal that is free of geometry within radius R. The same direction
 //! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
-//! noise). Pixels where surfaces meet (a neighbour on another surface at a similar depth), whose
+//! noise). Pixels where surfaces meet (a neighbour on another surface within the AO radius), whose
 //! cell spans a steep change of AO, or with no neighbour on their surface are evaluated directly.
 
 use glam::{Vec2, Vec3};
@@ -15,7 +15,7 @@ use rtd_render::SceneBvh;
 use rtd_scene::Scene;
 
 /// A sparse cell whose AO values spread more than this is evaluated per pixel.
-const REFINE_SPREAD: f32 = 0.08;
+const REFINE_SPREAD: f32 = 0.15;
 
 /// A surface point where AO is wanted.
 #[derive(Debug, Clone, Copy)]
@@ -78,9 +78,12 @@ pub fn ao_image(
             points[y * w + x].map(|pt| (pt, ao_at(scene, bvh, &pt, dirs, radius)))
         })
         .collect();
-    // Same surface: normals agree and the depth difference is small.
-    let same =
-        |q: &AoPoint, pt: &AoPoint| q.n.dot(pt.n) > 0.95 && (q.depth - pt.depth).abs() <= 0.02 * pt.depth.max(q.depth);
+    // Same surface: normals agree and the neighbour lies close to this point's tangent plane
+    // (which holds along receding planes, unlike a depth comparison).
+    let same = |q: &AoPoint, pt: &AoPoint| {
+        let d = q.p - pt.p;
+        q.n.dot(pt.n) > 0.95 && d.dot(pt.n).abs() <= 0.05 * d.length() + 1e-6 * pt.depth
+    };
     (0..w * h)
         .into_par_iter()
         .map(|i| {
@@ -92,15 +95,15 @@ pub fn ao_image(
             let mut sum = 0.0;
             let mut wsum = 0.0;
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            // A corner on another surface at a similar depth means the surfaces meet here (a
-            // crease or contact), where AO changes steeply.
+            // A corner on another surface within the AO radius means the surfaces meet or nearly
+            // meet here (a crease or contact), where AO changes steeply.
             let mut touching = false;
             for (dx, dy, bw) in
                 [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
             {
                 if let Some((q, ao)) = grid[(gy + dy) * gw + gx + dx] {
                     if !same(&q, &pt) {
-                        touching |= (q.depth - pt.depth).abs() <= 0.1 * pt.depth.max(q.depth);
+                        touching |= (q.p - pt.p).length() < radius;
                     } else {
                         let bw = bw.max(1e-3);
                         sum += bw * ao;
