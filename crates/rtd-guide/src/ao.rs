@@ -59,7 +59,7 @@ pub fn ao_at(scene: &Scene, bvh: &SceneBvh, pt: &AoPoint, dirs: &[Vec3], radius:
 pub fn ao_image(
     scene: &Scene,
     bvh: &SceneBvh,
-    points: &[Option<AoPoint>],
+    point: impl Fn(usize) -> Option<AoPoint> + Sync,
     width: u32,
     height: u32,
     dirs: &[Vec3],
@@ -75,7 +75,7 @@ pub fn ao_image(
         .into_par_iter()
         .map(|g| {
             let (x, y) = grid_px(g % gw, g / gw);
-            points[y * w + x].map(|pt| (pt, ao_at(scene, bvh, &pt, dirs, radius)))
+            point(y * w + x).map(|pt| (pt, ao_at(scene, bvh, &pt, dirs, radius)))
         })
         .collect();
     // Same surface: normals agree and the neighbour lies close to this point's tangent plane
@@ -87,7 +87,7 @@ pub fn ao_image(
     (0..w * h)
         .into_par_iter()
         .map(|i| {
-            let Some(pt) = points[i] else { return 1.0 };
+            let Some(pt) = point(i) else { return 1.0 };
             let (x, y) = (i % w, i / w);
             let (gx, gy) = (x / step, y / step);
             let (fx, fy) = ((x - gx * step) as f32 / step as f32, (y - gy * step) as f32 / step as f32);

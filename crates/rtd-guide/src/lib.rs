@@ -180,12 +180,11 @@ impl GuidePass {
             }
             out
         });
-        let points: Vec<Option<AoPoint>> = shaded.iter().map(|s| s.centre).collect();
         let bounds = scene.bounds();
         let radius =
             settings.ao_radius.unwrap_or(if bounds.is_empty() { 1.0 } else { 0.1 * bounds.diagonal().length() });
         let dirs = pattern(settings.ao_rays);
-        let ao = ao::ao_image(scene, bvh, &points, w, h, &dirs, radius, settings.ao_step);
+        let ao = ao::ao_image(scene, bvh, |i| shaded[i].centre, w, h, &dirs, radius, settings.ao_step);
         let albedo = HdrImage::from_pixels(w, h, shaded.iter().map(|s| s.albedo).collect());
         let normal = HdrImage::from_pixels(w, h, shaded.iter().map(|s| s.normal).collect());
         let depth = shaded.iter().map(|s| s.depth).collect();
