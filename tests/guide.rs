@@ -143,7 +143,7 @@ fn albedo_agrees_with_the_path_tracer_and_edges_line_up() {
 /// Sparse AO with upsampling stays close to AO evaluated at every pixel.
 #[test]
 fn sparse_ao_matches_dense_ao() {
-    for name in ["cornell-box", "textured-interior"] {
+    for name in ["cornell-box", "textured-interior", "glass-and-metals", "small-lights"] {
         let scene = rtd::scene::load_scene(&repo_path(&format!("scenes/{name}.gltf"))).unwrap();
         let cam = scene.select_camera(None).unwrap().0;
         let sparse = guide(&scene, &cam, GuideSettings::new(128, 96));

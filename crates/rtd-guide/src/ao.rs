@@ -17,6 +17,12 @@ use rtd_scene::Scene;
 /// A sparse cell whose AO values spread more than this is evaluated per pixel.
 const REFINE_SPREAD: f32 = 0.15;
 
+/// How far (as a fraction of their separation) a neighbour may leave a point's tangent plane and
+/// still count as the same surface: |d|/2r for a sphere of radius r seen across d, so 0.15
+/// keeps curved surfaces down to r ≈ 3 grid steps together while perpendicular surfaces (≈ 1)
+/// and silhouettes stay apart.
+const TANGENT_SLACK: f32 = 0.15;
+
 /// A surface point where AO is wanted.
 #[derive(Debug, Clone, Copy)]
 pub struct AoPoint {
@@ -82,7 +88,7 @@ pub fn ao_image(
     // (which holds along receding planes, unlike a depth comparison).
     let same = |q: &AoPoint, pt: &AoPoint| {
         let d = q.p - pt.p;
-        q.n.dot(pt.n) > 0.95 && d.dot(pt.n).abs() <= 0.05 * d.length() + 1e-6 * pt.depth
+        q.n.dot(pt.n) > 0.95 && d.dot(pt.n).abs() <= TANGENT_SLACK * d.length() + 1e-6 * pt.depth
     };
     (0..w * h)
         .into_par_iter()
