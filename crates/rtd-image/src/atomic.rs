@@ -3,6 +3,14 @@ use std::path::Path;
 
 use crate::ImageError;
 
+/// The directory a file at `path` lives in (`.` for a bare file name).
+pub fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
 /// Writes a file atomically: `write` fills a temporary file in the destination's directory,
 /// which is then renamed over `path`. On any error the temporary file is removed, so a
 /// half-written output never appears under the final name.
@@ -10,10 +18,7 @@ pub fn write_atomic<F>(path: &Path, write: F) -> Result<(), ImageError>
 where
     F: FnOnce(&mut std::io::BufWriter<&mut std::fs::File>) -> Result<(), ImageError>,
 {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let dir = parent_dir(path);
     let mut tmp = tempfile::Builder::new()
         .prefix(".rtd-")
         .suffix(".tmp")

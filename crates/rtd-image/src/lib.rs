@@ -13,7 +13,7 @@ mod format;
 mod hdr;
 mod ldr;
 
-pub use atomic::write_atomic;
+pub use atomic::{parent_dir, write_atomic};
 pub use error::ImageError;
 pub use exr_io::{read_exr, write_exr, Layers};
 pub use format::ImageFormat;

@@ -166,10 +166,10 @@ impl Bsdf {
                     fresnel_schlick(self.p.base_color, cos_om)
                 };
                 let d = self.ggx.d(wm);
-                let (lo, li) = (self.ggx.lambda(wo), self.ggx.lambda(wi));
+                let (g2, g1) = self.ggx.smith(wo, wi);
                 // f = F·D·G2/(4 cos_o cos_i); pdf = D_wo(wm)/(4 wo·wm) = G1(wo)·D/(4 cos_o).
-                let f = fresnel * (d / ((1.0 + lo + li) * 4.0 * wo.z * wi.z));
-                (f, d / ((1.0 + lo) * 4.0 * wo.z))
+                let f = fresnel * (d * g2 / (4.0 * wo.z * wi.z));
+                (f, d * g1 / (4.0 * wo.z))
             }
             Lobe::Dielectric => {
                 let Some((wm, etap, reflect)) = self.dielectric_half(wo, wi) else {
@@ -178,10 +178,9 @@ impl Bsdf {
                 let (cos_om, cos_im) = (wo.dot(wm), wi.dot(wm));
                 let fr = fresnel_dielectric(cos_om, self.p.ior);
                 let d = self.ggx.d(wm);
-                let (lo, li) = (self.ggx.lambda(wo), self.ggx.lambda(wi));
-                let g = 1.0 / (1.0 + lo + li);
+                let (g, g1) = self.ggx.smith(wo, wi);
                 // Visible-normal density D_wo(wm) = G1(wo)·D·|wo·wm|/|cos_o|.
-                let pm = d * cos_om.abs() / ((1.0 + lo) * wo.z.abs());
+                let pm = g1 * d * cos_om.abs() / wo.z.abs();
                 if reflect {
                     (Vec3::splat(d * g * fr / (4.0 * wi.z * wo.z).abs()), pm / (4.0 * cos_om.abs()) * fr)
                 } else {

@@ -54,7 +54,6 @@ pub struct LightSet {
     tri_light: Vec<u32>,
     env_index: Option<u32>,
     env_dist: Option<EnvDistribution>,
-    scene_radius: f32,
 }
 
 /// Emitted radiance of triangle `tri` at barycentrics `b`.
@@ -129,7 +128,7 @@ impl LightSet {
                 power.push(p);
             }
         }
-        LightSet { select: Distribution1D::new(&power), lights, tri_light, env_index, env_dist, scene_radius }
+        LightSet { select: Distribution1D::new(&power), lights, tri_light, env_index, env_dist }
     }
 
     /// Number of lights.
@@ -203,11 +202,6 @@ impl LightSet {
                 Some(LightSample { wi, li, pdf: sel * pdf_dir, point: None, delta: false })
             }
         }
-    }
-
-    /// Scene radius used for infinite-light power estimates.
-    pub fn scene_radius(&self) -> f32 {
-        self.scene_radius
     }
 }
 

@@ -52,26 +52,11 @@ impl Ggx {
         ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0) * 0.5
     }
 
-    /// Smith masking G1(w).
+    /// Smith terms for a pair of directions: (height-correlated G2(wo, wi), masking G1(wo)).
     #[inline]
-    pub fn g1(&self, w: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(w))
-    }
-
-    /// Height-correlated masking-shadowing G(wo, wi).
-    #[inline]
-    pub fn g(&self, wo: Vec3, wi: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
-    }
-
-    /// Density of visible normals from `w`: D_w(m) = G1(w) max(0, w·m) D(m) / |cos θ_w|.
-    #[inline]
-    pub fn pdf_visible(&self, w: Vec3, m: Vec3) -> f32 {
-        let c = w.z.abs();
-        if c == 0.0 {
-            return 0.0;
-        }
-        self.g1(w) / c * self.d(m) * w.dot(m).abs()
+    pub fn smith(&self, wo: Vec3, wi: Vec3) -> (f32, f32) {
+        let (lo, li) = (self.lambda(wo), self.lambda(wi));
+        (1.0 / (1.0 + lo + li), 1.0 / (1.0 + lo))
     }
 
     /// Samples a visible normal as seen from `w` (either hemisphere); the result has m.z > 0.

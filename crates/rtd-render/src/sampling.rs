@@ -26,18 +26,6 @@ impl Frame {
         Frame { s, t, n }
     }
 
-    /// A frame with z along `n` and x along the projection of `tangent` (falls back if degenerate).
-    #[inline]
-    pub fn from_normal_tangent(n: Vec3, tangent: Vec3) -> Self {
-        let s = tangent - n * n.dot(tangent);
-        let l = s.length();
-        if !(l > 1e-8) {
-            return Self::from_normal(n);
-        }
-        let s = s / l;
-        Frame { s, t: n.cross(s), n }
-    }
-
     /// World to local.
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {

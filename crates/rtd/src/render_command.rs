@@ -67,13 +67,7 @@ pub struct RenderReport {
 /// Fails early, before any rendering, if `path` cannot be written as an image.
 pub fn check_output(path: &Path) -> anyhow::Result<ImageFormat> {
     let format = ImageFormat::from_path(path)?;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!("{}: output directory {} does not exist", path.display(), dir.display());
-    }
+    let dir = existing_dir(path, "output")?;
     if path.is_dir() {
         bail!("{}: is a directory", path.display());
     }
@@ -234,14 +228,16 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
 
 /// Fails early if the report's directory does not exist.
 pub fn check_report_path(path: &Path) -> anyhow::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    existing_dir(path, "report").map(|_| ())
+}
+
+/// The directory `path` will be written in, or an error naming it if it does not exist.
+fn existing_dir<'p>(path: &'p Path, what: &str) -> anyhow::Result<&'p Path> {
+    let dir = rtd_image::parent_dir(path);
     if !dir.is_dir() {
-        bail!("{}: report directory {} does not exist", path.display(), dir.display());
+        bail!("{}: {what} directory {} does not exist", path.display(), dir.display());
     }
-    Ok(())
+    Ok(dir)
 }
 
 /// Writes any serialisable report as pretty JSON, atomically.
