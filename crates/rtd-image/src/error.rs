@@ -36,13 +36,16 @@ pub enum ImageError {
 }
 
 impl ImageError {
-    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+    /// An I/O failure on `path`.
+    pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         ImageError::Io { path: path.to_path_buf(), source }
     }
-    pub(crate) fn decode(path: &std::path::Path, message: impl ToString) -> Self {
+    /// `path` could not be decoded.
+    pub fn decode(path: &std::path::Path, message: impl ToString) -> Self {
         ImageError::Decode { path: path.to_path_buf(), message: message.to_string() }
     }
-    pub(crate) fn invalid(path: &std::path::Path, message: impl ToString) -> Self {
+    /// `path` holds something invalid.
+    pub fn invalid(path: &std::path::Path, message: impl ToString) -> Self {
         ImageError::Invalid { path: path.to_path_buf(), message: message.to_string() }
     }
 }

@@ -18,6 +18,8 @@ pub use error::ImageError;
 pub use exr_io::{read_exr, write_exr, Layers};
 pub use format::ImageFormat;
 pub use hdr::HdrImage;
+pub mod metrics;
+pub mod plot;
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
 
 /// Largest width or height rtd accepts for any image it reads or writes.

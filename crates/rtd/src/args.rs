@@ -20,6 +20,259 @@ pub enum Command {
     Render(RenderArgs),
     /// Rasterise the guide pass (albedo, normal, depth, AO and albedo × AO) of a scene.
     Guide(GuideArgs),
+    /// Generate procedural scenes and render the denoiser's training set (resumable).
+    Datagen(DatagenArgs),
+    /// Denoise a noisy render (from rtd or other software) with its guide image.
+    Denoise(DenoiseArgs),
+    /// Benchmarks: validation-set comparison, equal-time (ETRT) reports, speed.
+    Bench(BenchArgs),
+    /// Train the denoiser on a `rtd datagen` dataset (resumable; --quick for a smoke run).
+    Train(TrainArgs),
+}
+
+/// Which network to train.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum VariantArg {
+    /// Three-level U-Net of inception blocks (24/48/64 channels): the shipped model.
+    Unet,
+    /// Inception blocks at full resolution only (32 channels, dilated).
+    SingleScale,
+}
+
+/// `rtd train` options.
+#[derive(Debug, Clone, Args)]
+pub struct TrainArgs {
+    /// Dataset directory made by `rtd datagen` (with --quick: where to make a tiny one).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Output directory: checkpoints, state.json, curves.png, and model.bpk + model.json at the end.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Optimiser steps.
+    #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+    pub steps: u64,
+    /// Crops per batch.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub batch: u32,
+    /// Crop side in pixels (a multiple of 4, at most the dataset's image size).
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=1024))]
+    pub crop: u32,
+    /// Steps per epoch (validation + checkpoint after each).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub epoch_steps: u64,
+    /// Seed for weights and batches.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Network variant.
+    #[arg(long, value_enum, default_value_t = VariantArg::Unet)]
+    pub variant: VariantArg,
+    /// Continue the run in --output after an interruption.
+    #[arg(long)]
+    pub resume: bool,
+    /// Smoke run: make a tiny dataset in --data and train a few steps on it.
+    #[arg(long)]
+    pub quick: bool,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `rtd denoise` options.
+#[derive(Debug, Clone, Args)]
+pub struct DenoiseArgs {
+    /// Noisy colour: .exr (HDR; `R,G,B`) or .png/.jpg (taken as sRGB).
+    #[arg(long)]
+    pub color: PathBuf,
+    /// Guide image: material colour × AO (EXR `guide.*` or `R,G,B`, or sRGB PNG/JPEG).
+    #[arg(long)]
+    pub guide: Option<PathBuf>,
+    /// Albedo image (EXR `albedo.*` or `R,G,B`, or sRGB PNG/JPEG).
+    #[arg(long, requires = "normal")]
+    pub albedo: Option<PathBuf>,
+    /// World- or camera-space normals (EXR `normal.X/Y/Z` or `R,G,B`; PNG/JPEG as n·0.5+0.5).
+    #[arg(long, requires = "albedo")]
+    pub normal: Option<PathBuf>,
+    /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Output: .exr or .png/.jpg.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Exposure in stops for 8-bit outputs.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub exposure: f32,
+    /// Write a JSON report (denoise_s, model, sizes) here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// `rtd bench` options.
+#[derive(Debug, Clone, Args)]
+pub struct BenchArgs {
+    /// Which benchmark.
+    #[command(subcommand)]
+    pub which: BenchCommand,
+}
+
+/// The benchmarks.
+#[derive(Debug, Clone, Subcommand)]
+pub enum BenchCommand {
+    /// Compare noisy, rtd (all guides / guide RGB only), the noisy-as-guide ablation, the
+    /// guided-filter baseline and external results on a dataset's validation views.
+    Validation(ValidationArgs),
+    /// Equal-time comparison on one scene: rtd (low spp + guide + denoise) against plain path
+    /// tracing given the same wall time, scored against a reference.
+    Etrt(EtrtArgs),
+    /// ETRT plus an spp sweep (1–64) over several scenes (default: the bundled ones), with a
+    /// summary table and plots.
+    Suite(SuiteArgs),
+    /// Render paths/s and rays/s, guide and denoise seconds per megapixel (medians of runs).
+    Speed(SpeedArgs),
+}
+
+/// `rtd bench speed` options.
+#[derive(Debug, Clone, Args)]
+pub struct SpeedArgs {
+    /// Scene file (default: the bundled Cornell box).
+    #[arg(default_value = "scenes/cornell-box.gltf")]
+    pub scene: PathBuf,
+    /// Image width.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub height: u32,
+    /// Samples per pixel of each timed render.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub spp: u32,
+    /// Runs per figure.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub runs: u32,
+    /// Denoiser model instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `rtd bench suite` options.
+#[derive(Debug, Clone, Args)]
+pub struct SuiteArgs {
+    /// Scene files or directories of them (default: the bundled scenes/).
+    pub scenes: Vec<PathBuf>,
+    /// Samples per pixel of the denoised pipeline.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub spp: u32,
+    /// Samples per pixel of the rendered references.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
+    pub reference_spp: u32,
+    /// Image width.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub height: u32,
+    /// Denoiser model instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Output directory.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `rtd bench etrt` options.
+#[derive(Debug, Clone, Args)]
+pub struct EtrtArgs {
+    /// Scene file (its first camera is used).
+    pub scene: PathBuf,
+    /// Samples per pixel of the denoised pipeline.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub spp: u32,
+    /// A reference EXR to score against (default: render one, cached).
+    #[arg(long, conflicts_with = "reference_spp")]
+    pub reference: Option<PathBuf>,
+    /// Samples per pixel of a rendered reference.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
+    pub reference_spp: u32,
+    /// Image width.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub height: u32,
+    /// Seed of the measured render.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Denoiser model instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Output directory: report.json, report.md, side-by-side.png, error-vs-time.png.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `rtd bench validation` options.
+#[derive(Debug, Clone, Args)]
+pub struct ValidationArgs {
+    /// Dataset directory made by `rtd datagen`.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Denoiser model instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Noisy sample count to evaluate (one of the dataset's levels).
+    #[arg(long, default_value_t = 8)]
+    pub spp: u32,
+    /// Another denoiser's outputs, as NAME=DIR with DIR/<view>.exr per validation view.
+    #[arg(long = "external", value_parser = parse_named_dir)]
+    pub external: Vec<(String, PathBuf)>,
+    /// Output directory for report.json and report.md.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+fn parse_named_dir(s: &str) -> Result<(String, PathBuf), String> {
+    let (name, dir) = s.split_once('=').ok_or("expected NAME=DIR")?;
+    Ok((name.to_string(), PathBuf::from(dir)))
+}
+
+/// `rtd datagen` options.
+#[derive(Debug, Clone, Args)]
+pub struct DatagenArgs {
+    /// Output directory (scenes/, views/ and manifest.json). Rerun to resume.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Master seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Number of generated scenes.
+    #[arg(long, default_value_t = 28, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    pub scenes: u64,
+    /// Views (cameras) per scene.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub views: u32,
+    /// Image width and height of every view.
+    #[arg(long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    pub size: u32,
+    /// Reference samples per pixel (doubled where the reference stays noisy).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
+    pub reference_spp: u32,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 /// Tonemap choice for 8-bit outputs.
@@ -98,6 +351,13 @@ pub struct RenderArgs {
     /// Also run the guide pass and write its layers (guide, albedo, normal, depth, ao) to the EXR.
     #[arg(long)]
     pub aov: bool,
+    /// Denoise with the learned denoiser (implies the guide pass). EXR: R,G,B = denoised,
+    /// noisy.R/G/B = the raw render; PNG/JPEG: the denoised image.
+    #[arg(long)]
+    pub denoise: bool,
+    /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
+    #[arg(long, requires = "denoise")]
+    pub model: Option<PathBuf>,
     /// Write a JSON report of timings and counters here.
     #[arg(long)]
     pub report: Option<PathBuf>,

@@ -4,14 +4,20 @@
 //! tests and benchmarks reach the same code paths as users.
 
 pub mod args;
+pub mod bench_command;
+pub mod denoise_command;
 pub mod guide_command;
 pub mod progress;
 pub mod render_command;
+pub mod train_command;
 
+pub use rtd_bench as bench;
+pub use rtd_denoise as denoise;
 pub use rtd_guide as guide;
 pub use rtd_image as image;
 pub use rtd_render as render;
 pub use rtd_scene as scene;
+pub use rtd_train as train;
 
 use clap::Parser;
 
@@ -32,6 +38,10 @@ where
     match cli.command {
         args::Command::Render(a) => render_command::render(&a).map(|_| ()),
         args::Command::Guide(a) => guide_command::guide(&a).map(|_| ()),
+        args::Command::Datagen(a) => train_command::datagen(&a).map(|_| ()),
+        args::Command::Denoise(a) => denoise_command::denoise(&a).map(|_| ()),
+        args::Command::Bench(a) => bench_command::bench(&a),
+        args::Command::Train(a) => train_command::train(&a).map(|_| ()),
     }
 }
 

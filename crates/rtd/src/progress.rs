@@ -52,3 +52,48 @@ impl RenderObserver for BarObserver {
         self.interrupted.load(Ordering::SeqCst)
     }
 }
+
+/// Feeds a library [`rtd_train::Progress`] into a bar; Ctrl-C cancels.
+pub struct TaskBar {
+    bar: std::sync::Mutex<Option<ProgressBar>>,
+    quiet: bool,
+    interrupted: Arc<AtomicBool>,
+}
+
+impl TaskBar {
+    /// A bar that appears when the first phase starts.
+    pub fn new(quiet: bool) -> Self {
+        TaskBar { bar: std::sync::Mutex::new(None), quiet, interrupted: interrupt_flag() }
+    }
+    /// Closes the current bar.
+    pub fn finish(&self) {
+        if let Some(b) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            b.finish_and_clear();
+        }
+    }
+}
+
+impl rtd_train::Progress for TaskBar {
+    fn start(&self, len: u64, what: &str) {
+        let mut slot = self.bar.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(b) = slot.take() {
+            b.finish_and_clear();
+        }
+        *slot = Some(bar(len, what, self.quiet));
+    }
+    fn inc(&self, n: u64) {
+        if let Some(b) = &*self.bar.lock().unwrap_or_else(|e| e.into_inner()) {
+            b.inc(n);
+        }
+    }
+    fn note(&self, line: &str) {
+        match &*self.bar.lock().unwrap_or_else(|e| e.into_inner()) {
+            Some(b) if !self.quiet && !b.is_hidden() => b.println(line),
+            _ if !self.quiet => eprintln!("{line}"),
+            _ => {}
+        }
+    }
+    fn cancelled(&self) -> bool {
+        self.interrupted.load(Ordering::SeqCst)
+    }
+}

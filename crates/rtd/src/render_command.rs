@@ -6,8 +6,9 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use serde::Serialize;
 
+use rtd_denoise::DenoiseInput;
 use rtd_guide::{GuidePass, GuideSettings};
-use rtd_image::{ImageFormat, Tonemap};
+use rtd_image::{HdrImage, ImageFormat, Tonemap};
 use rtd_render::{Film, PathTracer, RenderScene, RenderSettings, RenderStats};
 use rtd_scene::{Camera, Environment, Scene};
 
@@ -62,6 +63,10 @@ pub struct RenderReport {
     /// Guide-pass seconds (with `--aov`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub guide_s: Option<f64>,
+    /// Denoiser seconds (with --denoise).
+    pub denoise_s: Option<f64>,
+    /// The denoiser model used (with --denoise).
+    pub denoise_model: Option<String>,
 }
 
 /// Fails early, before any rendering, if `path` cannot be written as an image.
@@ -107,6 +112,7 @@ pub fn write_film(
     path: &Path,
     film: &Film,
     guide: Option<&GuidePass>,
+    denoised: Option<&HdrImage>,
     exposure: f32,
     tonemap: TonemapArg,
 ) -> anyhow::Result<()> {
@@ -116,6 +122,10 @@ pub fn write_film(
             if let Some(g) = guide {
                 g.add_to(&mut layers);
             }
+            if let Some(d) = denoised {
+                layers.push_rgb("noisy", &film.beauty());
+                layers.push_rgb("", d);
+            }
             rtd_image::write_exr(path, &layers)?
         }
         _ => {
@@ -123,7 +133,7 @@ pub fn write_film(
                 TonemapArg::Clamp => Tonemap::Clamp,
                 TonemapArg::Aces => Tonemap::Aces,
             };
-            rtd_image::write_ldr(path, &film.beauty(), exposure, t)?
+            rtd_image::write_ldr(path, denoised.unwrap_or(&film.beauty()), exposure, t)?
         }
     }
     Ok(())
@@ -164,6 +174,8 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     if let Some(r) = &args.report {
         check_report_path(r)?;
     }
+    // Load the model first: a bad model should fail before minutes of rendering.
+    let model = if args.denoise { Some(crate::denoise_command::load_model(args.model.as_ref())?) } else { None };
     let PreparedView { scene: prepared, camera, load_s } = prepare_view(view, args.env.as_deref())?;
     if prepared.lights.is_empty() {
         eprintln!("rtd: warning: {}: scene has no lights and no --env; the image will be black", view.scene.display());
@@ -198,15 +210,30 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     if film.spp == 0 {
         bail!("interrupted before the first pass finished; nothing written");
     }
-    let guide = if args.aov {
+    let guide = if args.aov || args.denoise {
         let settings = GuideSettings::new(view.width, view.height).threads(view.threads.map(|t| t as usize));
         Some(GuidePass::render(&prepared.scene, &prepared.bvh, &camera, &settings)?)
     } else {
         None
     };
-    write_film(&args.output, &film, guide.as_ref(), args.exposure, args.tonemap)?;
+    let mut denoise_s = None;
+    let denoised = match (&model, &guide) {
+        (Some(model), Some(g)) => {
+            let t = Instant::now();
+            let beauty = film.beauty();
+            let input =
+                DenoiseInput::new(&beauty, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth);
+            let out = model.denoise(&input)?;
+            denoise_s = Some(t.elapsed().as_secs_f64());
+            Some(out)
+        }
+        _ => None,
+    };
+    write_film(&args.output, &film, guide.as_ref(), denoised.as_ref(), args.exposure, args.tonemap)?;
     let mut report = make_report(args, &prepared, &camera, load_s, &stats, &film, was_interrupted);
     report.guide_s = guide.as_ref().map(|g| g.seconds);
+    report.denoise_s = denoise_s;
+    report.denoise_model = model.as_ref().map(|m| m.name().to_string());
     println!(
         "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}{}",
         report.spp,
@@ -217,7 +244,8 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         report.rays_per_s / 1e6,
         report.rays_per_path,
         report.nonfinite_samples,
-        guide.as_ref().map(|g| format!(", guide pass {:.3} s", g.seconds)).unwrap_or_default(),
+        guide.as_ref().map(|g| format!(", guide pass {:.3} s", g.seconds)).unwrap_or_default()
+            + &denoise_s.map(|d| format!(", denoised in {d:.3} s")).unwrap_or_default(),
         if was_interrupted { " (interrupted: image holds the finished passes)" } else { "" }
     );
     if let Some(path) = &args.report {
@@ -284,6 +312,8 @@ fn make_report(
         warnings: scene.warnings.clone(),
         interrupted,
         guide_s: None,
+        denoise_s: None,
+        denoise_model: None,
     }
 }
 

@@ -1,0 +1,132 @@
+//! `rtd bench speed`: render throughput (paths/s, rays/s), guide seconds per megapixel and
+//! denoise seconds per megapixel, each the median of several runs with the min–max range.
+
+use std::path::Path;
+use std::time::Instant;
+
+use rtd_denoise::{DenoiseInput, Denoiser};
+use rtd_guide::{GuidePass, GuideSettings};
+use rtd_render::{PathTracer, RenderScene, RenderSettings};
+use serde::{Deserialize, Serialize};
+
+use crate::{BenchError, Progress};
+
+/// Median and range of repeated measurements.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct Spread {
+    /// Median.
+    pub median: f64,
+    /// Smallest.
+    pub min: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Spread {
+    /// Summarises `values` (at least one).
+    pub fn of(mut values: Vec<f64>) -> Self {
+        values.sort_by(|a, b| a.total_cmp(b));
+        Spread { median: values[values.len() / 2], min: values[0], max: values[values.len() - 1] }
+    }
+}
+
+/// The speed report of one scene at one size.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SpeedReport {
+    /// Scene file.
+    pub scene: String,
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Samples per pixel of each timed render.
+    pub spp: u32,
+    /// Runs per figure.
+    pub runs: usize,
+    /// Millions of camera paths per second.
+    pub mpaths_per_s: Spread,
+    /// Millions of rays per second.
+    pub mrays_per_s: Spread,
+    /// Guide pass seconds per megapixel.
+    pub guide_s_per_mpixel: Spread,
+    /// Denoiser seconds per megapixel.
+    pub denoise_s_per_mpixel: Spread,
+}
+
+/// Measures `runs` times each: an `spp` render, the guide pass and the denoiser.
+pub fn run_speed(
+    scene_path: &Path,
+    denoiser: &Denoiser,
+    width: u32,
+    height: u32,
+    spp: u32,
+    runs: usize,
+    progress: &dyn Progress,
+) -> Result<SpeedReport, BenchError> {
+    let scene = rtd_scene::load_scene(scene_path)?;
+    let (cam, _) = scene.select_camera(None).map_err(|e| BenchError::msg(scene_path, e))?;
+    let rs = RenderScene::new(scene);
+    let mp = (width as f64 * height as f64) / 1e6;
+    let (mut paths, mut rays, mut guide_t, mut den_t) = (vec![], vec![], vec![], vec![]);
+    progress.start(runs as u64, "speed");
+    for run in 0..runs.max(1) {
+        let tracer = PathTracer::new(&rs, cam.clone(), RenderSettings::new(width, height).seed(run as u64))?;
+        let mut film = tracer.film();
+        let stats = tracer.render(&mut film, spp)?;
+        paths.push(stats.paths as f64 / stats.seconds / 1e6);
+        rays.push(stats.rays as f64 / stats.seconds / 1e6);
+        let g = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(width, height))?;
+        guide_t.push(g.seconds / mp);
+        let color = film.beauty();
+        let t = Instant::now();
+        denoiser.denoise(
+            &DenoiseInput::new(&color, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth),
+        )?;
+        den_t.push(t.elapsed().as_secs_f64() / mp);
+        progress.inc(1);
+        if progress.cancelled() {
+            break;
+        }
+    }
+    Ok(SpeedReport {
+        scene: scene_path.display().to_string(),
+        width,
+        height,
+        spp,
+        runs: paths.len(),
+        mpaths_per_s: Spread::of(paths),
+        mrays_per_s: Spread::of(rays),
+        guide_s_per_mpixel: Spread::of(guide_t),
+        denoise_s_per_mpixel: Spread::of(den_t),
+    })
+}
+
+impl SpeedReport {
+    /// One Markdown table row per figure.
+    pub fn markdown(&self) -> String {
+        let row = |name: &str, s: &Spread| format!("| {name} | {:.3} | {:.3}–{:.3} |\n", s.median, s.min, s.max);
+        format!(
+            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}",
+            self.scene,
+            self.width,
+            self.height,
+            self.spp,
+            self.runs,
+            row("render M paths/s", &self.mpaths_per_s),
+            row("render M rays/s", &self.mrays_per_s),
+            row("guide s / Mpixel", &self.guide_s_per_mpixel),
+            row("denoise s / Mpixel", &self.denoise_s_per_mpixel)
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spread_is_median_and_range() {
+        let s = Spread::of(vec![3.0, 1.0, 2.0, 10.0, 4.0]);
+        assert_eq!((s.median, s.min, s.max), (3.0, 1.0, 10.0));
+    }
+}

@@ -1,0 +1,184 @@
+//! HDR input encoding: sanitising (NaN → 0, Inf and negatives clamped), auto-exposure from the
+//! log-average luminance, a log transfer for colour, and assembly of the network's input planes.
+
+use rtd_image::HdrImage;
+
+use crate::{DenoiseError, INPUT_CHANNELS};
+
+/// Largest colour value accepted before exposure; +Inf and larger values are clamped to it.
+pub const MAX_INPUT: f32 = 1e7;
+
+/// What the denoiser is given. Colour and a guide are required; albedo + normal and AO + depth
+/// are optional pairs (rtd's own renders have all of them).
+#[derive(Clone, Copy)]
+pub struct DenoiseInput<'a> {
+    /// The noisy HDR colour.
+    pub color: &'a HdrImage,
+    /// The guide RGB: albedo × AO, the thesis's material render.
+    pub guide: &'a HdrImage,
+    /// Albedo and world-space normal.
+    pub albedo_normal: Option<(&'a HdrImage, &'a HdrImage)>,
+    /// Ambient occlusion and camera distance, one value per pixel.
+    pub ao_depth: Option<(&'a [f32], &'a [f32])>,
+}
+
+impl<'a> DenoiseInput<'a> {
+    /// Colour plus the guide RGB only (renders from other software).
+    pub fn new(color: &'a HdrImage, guide: &'a HdrImage) -> Self {
+        DenoiseInput { color, guide, albedo_normal: None, ao_depth: None }
+    }
+    /// Adds albedo and normal.
+    pub fn albedo_normal(mut self, albedo: &'a HdrImage, normal: &'a HdrImage) -> Self {
+        self.albedo_normal = Some((albedo, normal));
+        self
+    }
+    /// Adds AO and depth.
+    pub fn ao_depth(mut self, ao: &'a [f32], depth: &'a [f32]) -> Self {
+        self.ao_depth = Some((ao, depth));
+        self
+    }
+
+    /// Image width and height, after checking every layer has them.
+    pub fn size(&self) -> Result<(u32, u32), DenoiseError> {
+        let (w, h) = (self.color.width, self.color.height);
+        let n = (w * h) as usize;
+        let mut sizes = vec![("guide", self.guide.width, self.guide.height)];
+        if let Some((a, nrm)) = self.albedo_normal {
+            sizes.push(("albedo", a.width, a.height));
+            sizes.push(("normal", nrm.width, nrm.height));
+        }
+        for (name, iw, ih) in sizes {
+            if (iw, ih) != (w, h) {
+                return Err(DenoiseError::Input(format!(
+                    "the {name} image is {iw}x{ih} but the colour image is {w}x{h}"
+                )));
+            }
+        }
+        if let Some((ao, d)) = self.ao_depth {
+            if ao.len() != n || d.len() != n {
+                return Err(DenoiseError::Input(format!(
+                    "AO/depth have {} and {} values, expected {n}",
+                    ao.len(),
+                    d.len()
+                )));
+            }
+        }
+        Ok((w, h))
+    }
+}
+
+fn clean(x: f32, lo: f32, hi: f32) -> f32 {
+    if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(lo, hi)
+    }
+}
+
+fn luminance(r: f32, g: f32, b: f32) -> f32 {
+    0.2126 * r + 0.7152 * g + 0.0722 * b
+}
+
+/// Auto-exposure: the scale that maps the log-average luminance of the lit pixels to 0.18
+/// (1 for an all-black image).
+pub fn auto_exposure(color: &HdrImage) -> f32 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for p in &color.pixels {
+        let l = luminance(clean(p.x, 0.0, MAX_INPUT), clean(p.y, 0.0, MAX_INPUT), clean(p.z, 0.0, MAX_INPUT));
+        if l > 1e-8 {
+            sum += (l as f64).ln();
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return 1.0;
+    }
+    // Geometric mean of luminance over lit pixels.
+    let log_avg = (sum / n as f64).exp();
+    ((0.18 / log_avg) as f32).clamp(1e-8, 1e8)
+}
+
+/// The colour transfer: y = ln(1 + x · exposure).
+pub fn encode_color(x: f32, exposure: f32) -> f32 {
+    (clean(x, 0.0, MAX_INPUT) * exposure).ln_1p()
+}
+
+/// The inverse transfer: x = (e^y − 1) / exposure, for y ≥ 0.
+pub fn decode_color(y: f32, exposure: f32) -> f32 {
+    if y.is_nan() {
+        return 0.0;
+    }
+    (y.max(0.0).min(80.0).exp_m1() / exposure).min(f32::MAX)
+}
+
+/// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order.
+pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, DenoiseError> {
+    let (w, h) = input.size()?;
+    let n = (w * h) as usize;
+    let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
+    let mut put = |c: usize, i: usize, v: f32| planes[c * n + i] = v;
+    let depth_scale = input.ao_depth.map(|(_, d)| {
+        let hits: Vec<f32> = d.iter().copied().filter(|v| v.is_finite() && *v > 0.0).collect();
+        if hits.is_empty() {
+            1.0
+        } else {
+            hits.len() as f32 / hits.iter().sum::<f32>()
+        }
+    });
+    for i in 0..n {
+        let c = input.color.pixels[i];
+        let g = input.guide.pixels[i];
+        for k in 0..3 {
+            put(k, i, encode_color(c[k], exposure));
+            put(3 + k, i, clean(g[k], 0.0, 1.0));
+        }
+        if let Some((a, nrm)) = input.albedo_normal {
+            for k in 0..3 {
+                put(6 + k, i, clean(a.pixels[i][k], 0.0, 1.0));
+                put(9 + k, i, clean(nrm.pixels[i][k], -1.0, 1.0));
+            }
+            put(14, i, 1.0);
+        }
+        if let (Some((ao, d)), Some(s)) = (input.ao_depth, depth_scale) {
+            put(12, i, clean(ao[i], 0.0, 1.0));
+            // Depth relative to the mean hit distance, so the scene's scale does not matter.
+            put(13, i, clean(d[i] * s, 0.0, 8.0));
+            put(15, i, 1.0);
+        }
+    }
+    Ok(planes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn transfer_round_trips_and_sanitises() {
+        for x in [0.0f32, 1e-6, 0.18, 1.0, 37.0, 1e6] {
+            let y = encode_color(x, 0.5);
+            assert!((decode_color(y, 0.5) - x).abs() <= 1e-5 * x.max(1.0), "{x}");
+        }
+        assert_eq!(encode_color(f32::NAN, 1.0), 0.0);
+        assert_eq!(encode_color(-5.0, 1.0), 0.0);
+        assert!(encode_color(f32::INFINITY, 1.0).is_finite());
+        assert!(decode_color(f32::INFINITY, 1.0).is_finite());
+    }
+
+    #[test]
+    fn exposure_maps_the_log_average_to_middle_grey() {
+        let img = HdrImage::from_pixels(2, 1, vec![Vec3::splat(0.5), Vec3::splat(2.0)]);
+        assert!((auto_exposure(&img) - 0.18).abs() < 1e-6);
+        let scaled = HdrImage::from_pixels(2, 1, vec![Vec3::splat(5e5), Vec3::splat(2e6)]);
+        assert!((auto_exposure(&scaled) * 1e6 - 0.18).abs() < 1e-6);
+        assert_eq!(auto_exposure(&HdrImage::new(3, 3)), 1.0);
+    }
+
+    #[test]
+    fn mismatched_sizes_are_named() {
+        let (a, b) = (HdrImage::new(4, 4), HdrImage::new(4, 5));
+        let e = DenoiseInput::new(&a, &b).size().unwrap_err().to_string();
+        assert!(e.contains("guide") && e.contains("4x5"), "{e}");
+    }
+}

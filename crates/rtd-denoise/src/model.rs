@@ -1,0 +1,257 @@
+//! The denoising network: a U-Net of inception modules (the seed thesis's Model VI evaluated
+//! fully convolutionally), plus its [`DenoiserConfig`], which is saved beside the weights.
+
+use burn::config::Config;
+use burn::module::Module;
+use burn::nn::conv::{Conv2d, Conv2dConfig};
+use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
+use burn::nn::PaddingConfig2d;
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor};
+
+/// Input channels the network reads, in order (see `encode.rs`): encoded noisy colour (3), guide
+/// RGB = albedo × AO (3), albedo (3), normal (3), AO (1), depth (1), and two 0/1 flags saying
+/// whether albedo+normal and AO+depth are present.
+pub const INPUT_CHANNELS: usize = 16;
+
+/// Network hyper-parameters; serialised as JSON beside the weights so a model file is
+/// self-describing.
+#[derive(Config, Debug, PartialEq)]
+pub struct DenoiserConfig {
+    /// Channels at each resolution level, full resolution first. One entry = single scale.
+    pub channels: Vec<usize>,
+    /// Inception blocks at the coarsest level.
+    #[config(default = 2)]
+    pub bottleneck_blocks: usize,
+    /// Length k of the 1×k then k×1 branch.
+    #[config(default = 5)]
+    pub prong: usize,
+    /// Input channels (always [`INPUT_CHANNELS`] for this version; checked on load).
+    #[config(default = 16)]
+    pub input_channels: usize,
+}
+
+impl DenoiserConfig {
+    /// The shipped architecture: three levels of 24, 48 and 64 channels.
+    pub fn unet() -> Self {
+        DenoiserConfig::new(vec![24, 48, 64])
+    }
+
+    /// The single-scale variant: inception blocks at full resolution only, with dilations.
+    pub fn single_scale() -> Self {
+        DenoiserConfig::new(vec![32]).with_bottleneck_blocks(4)
+    }
+
+    /// The resolution factor the image size must be padded to: 2^(levels−1).
+    pub fn alignment(&self) -> usize {
+        1 << (self.channels.len() - 1)
+    }
+
+    /// Builds the network with random (seeded by the device) weights.
+    pub fn init(&self, device: &Device) -> DenoiserNet {
+        let c = &self.channels;
+        let levels = c.len();
+        let stem = conv(self.input_channels, c[0], 3, 1, device);
+        let mut encoders = vec![InceptionBlock::new(c[0], c[0], 1, self.prong, device)];
+        for l in 1..levels {
+            encoders.push(InceptionBlock::new(c[l - 1], c[l], 1, self.prong, device));
+        }
+        let bottleneck = (0..self.bottleneck_blocks)
+            .map(|i| InceptionBlock::new(c[levels - 1], c[levels - 1], 2 + i % 2 * 2, self.prong, device))
+            .collect();
+        let decoders = (0..levels - 1)
+            .map(|l| Decoder {
+                fuse: conv(c[l + 1] + c[l], c[l], 1, 1, device),
+                refine: conv(c[l], c[l], 3, 1, device),
+            })
+            .collect();
+        let output = conv(c[0], 3, 1, 1, device);
+        DenoiserNet { stem, encoders, bottleneck, decoders, output, downsample: MaxPool2dConfig::new([2, 2]).init() }
+    }
+
+    /// An upper bound on how far (in full-resolution pixels) an input pixel can influence an
+    /// output pixel: half the receptive field. Tiles overlap by at least this much.
+    pub fn receptive_radius(&self) -> usize {
+        let levels = self.channels.len();
+        let block = |dilation: usize, scale: usize| dilation.max(2).max((self.prong - 1) / 2) * scale;
+        let mut r = 1; // stem 3×3
+        r += block(1, 1);
+        for l in 1..levels {
+            let s = 1 << l;
+            r += s / 2 + block(1, s); // 2× max-pool, then a block at scale s
+        }
+        let s = 1 << (levels - 1);
+        for i in 0..self.bottleneck_blocks {
+            r += block(2 + i % 2 * 2, s);
+        }
+        for l in (0..levels - 1).rev() {
+            r += (1 << l) * 2; // nearest upsample + 1×1 fuse + 3×3 conv at scale 2^l
+        }
+        r
+    }
+
+    /// Multiply-accumulates per full-resolution pixel of one forward pass.
+    pub fn macs_per_pixel(&self) -> f64 {
+        let c = &self.channels;
+        let levels = c.len();
+        let scale = |l: usize| 1.0 / (1u64 << (2 * l)) as f64;
+        let mut m = (9 * self.input_channels * c[0]) as f64;
+        m += InceptionBlock::macs(c[0], c[0], self.prong);
+        for l in 1..levels {
+            m += InceptionBlock::macs(c[l - 1], c[l], self.prong) * scale(l);
+        }
+        m += self.bottleneck_blocks as f64
+            * InceptionBlock::macs(c[levels - 1], c[levels - 1], self.prong)
+            * scale(levels - 1);
+        for l in 0..levels - 1 {
+            m += ((c[l + 1] + c[l]) * c[l] + 9 * c[l] * c[l]) as f64 * scale(l);
+        }
+        m + (c[0] * 3) as f64
+    }
+}
+
+/// A stride-1 convolution with "same" padding.
+fn conv(cin: usize, cout: usize, k: usize, dilation: usize, device: &Device) -> Conv2d {
+    conv_rect(cin, cout, [k, k], dilation, device)
+}
+
+fn conv_rect(cin: usize, cout: usize, k: [usize; 2], dilation: usize, device: &Device) -> Conv2d {
+    let (ph, pw) = ((k[0] - 1) / 2 * dilation, (k[1] - 1) / 2 * dilation);
+    Conv2dConfig::new([cin, cout], k)
+        .with_dilation([dilation, dilation])
+        .with_padding(PaddingConfig2d::Explicit(ph, pw, ph, pw))
+        .init(device)
+}
+
+/// One inception module: parallel 1×1, 3×3, dilated 3×3, 1×k→k×1, max-pool and min-pool
+/// branches, concatenated and mixed by a 1×1 convolution, with a residual path when the widths
+/// match.
+#[derive(Module, Debug)]
+pub struct InceptionBlock {
+    pub(crate) one: Conv2d,
+    pub(crate) three: Conv2d,
+    pub(crate) dilated: Conv2d,
+    pub(crate) prong_h: Conv2d,
+    pub(crate) prong_v: Conv2d,
+    pub(crate) max_proj: Conv2d,
+    pub(crate) min_proj: Conv2d,
+    pub(crate) mix: Conv2d,
+    pub(crate) pool: MaxPool2d,
+    pub(crate) residual: bool,
+}
+
+impl InceptionBlock {
+    /// Branch width for an output of `cout` channels.
+    fn branch(cout: usize) -> usize {
+        (cout / 4).max(4)
+    }
+
+    fn new(cin: usize, cout: usize, dilation: usize, prong: usize, device: &Device) -> Self {
+        let b = Self::branch(cout);
+        let h = (b / 2).max(2);
+        InceptionBlock {
+            one: conv(cin, b, 1, 1, device),
+            three: conv(cin, b, 3, 1, device),
+            dilated: conv(cin, b, 3, dilation.max(2), device),
+            prong_h: conv_rect(cin, b, [1, prong], 1, device),
+            prong_v: conv_rect(b, b, [prong, 1], 1, device),
+            max_proj: conv(cin, h, 1, 1, device),
+            min_proj: conv(cin, h, 1, 1, device),
+            mix: conv(4 * b + 2 * h, cout, 1, 1, device),
+            pool: MaxPool2dConfig::new([3, 3])
+                .with_strides([1, 1])
+                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+                .init(),
+            residual: cin == cout,
+        }
+    }
+
+    fn macs(cin: usize, cout: usize, prong: usize) -> f64 {
+        let b = Self::branch(cout);
+        let h = (b / 2).max(2);
+        (cin * b + 2 * 9 * cin * b + prong * cin * b + prong * b * b + 2 * cin * h + (4 * b + 2 * h) * cout) as f64
+    }
+
+    /// `x`: [N, cin, H, W] → [N, cout, H, W].
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let one = self.one.forward(x.clone()); // [N, b, H, W]
+        let three = self.three.forward(x.clone()); // [N, b, H, W]
+        let dilated = self.dilated.forward(x.clone()); // [N, b, H, W]
+        let prong = self.prong_v.forward(relu(self.prong_h.forward(x.clone()))); // [N, b, H, W]
+        let max = self.max_proj.forward(self.pool.forward(x.clone())); // [N, b/2, H, W]
+        let min = self.min_proj.forward(-self.pool.forward(-x.clone())); // [N, b/2, H, W]
+        let cat = relu(Tensor::cat(vec![one, three, dilated, prong, max, min], 1)); // [N, 4b + b, H, W]
+        let y = relu(self.mix.forward(cat)); // [N, cout, H, W]
+        if self.residual {
+            y + x
+        } else {
+            y
+        }
+    }
+}
+
+/// The denoiser: stem conv, an encoder of inception blocks with 2× max-pool between levels,
+/// inception bottleneck blocks, a decoder of nearest upsampling + skip concatenation + 1×1 fuse +
+/// 3×3 convs, and a 1×1 output conv predicting encoded colour.
+#[derive(Module, Debug)]
+pub struct DenoiserNet {
+    pub(crate) stem: Conv2d,
+    pub(crate) encoders: Vec<InceptionBlock>,
+    pub(crate) bottleneck: Vec<InceptionBlock>,
+    pub(crate) decoders: Vec<Decoder>,
+    pub(crate) output: Conv2d,
+    pub(crate) downsample: MaxPool2d,
+}
+
+/// One decoder level: the upsampled coarse features and the skip are concatenated, fused by a
+/// 1×1 convolution and refined by a 3×3 one.
+#[derive(Module, Debug)]
+pub struct Decoder {
+    pub(crate) fuse: Conv2d,
+    pub(crate) refine: Conv2d,
+}
+
+/// Nearest-neighbour 2× upsampling: [N, C, H, W] → [N, C, 2H, 2W].
+fn upsample2(x: Tensor<4>) -> Tensor<4> {
+    let [n, c, h, w] = x.dims();
+    x.reshape([n, c, h, 1, w, 1]).expand([n, c, h, 2, w, 2]).reshape([n, c, 2 * h, 2 * w])
+}
+
+impl DenoiserNet {
+    /// `x`: [N, 16, H, W] encoded inputs, H and W multiples of the config's alignment
+    /// → [N, 3, H, W] encoded colour.
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let mut skips = Vec::with_capacity(self.encoders.len());
+        let mut y = relu(self.stem.forward(x)); // [N, c0, H, W]
+        for (l, enc) in self.encoders.iter().enumerate() {
+            if l > 0 {
+                y = self.downsample.forward(y); // [N, c(l−1), H/2^l, W/2^l]
+            }
+            y = enc.forward(y); // [N, c(l), H/2^l, W/2^l]
+            skips.push(y.clone());
+        }
+        for b in &self.bottleneck {
+            y = b.forward(y); // [N, c(last), H/2^(L−1), W/2^(L−1)]
+        }
+        skips.pop();
+        for dec in self.decoders.iter().rev() {
+            let skip = skips.pop().expect("one skip per decoder level"); // [N, c(l), H/2^l, W/2^l]
+            let up = upsample2(y); // [N, c(l+1), H/2^l, W/2^l]
+            let fused = relu(dec.fuse.forward(Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
+            y = relu(dec.refine.forward(fused)); // [N, c(l), H/2^l, W/2^l]
+        }
+        self.output.forward(y) // [N, 3, H, W]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn print_costs() {
+        for c in [DenoiserConfig::unet(), DenoiserConfig::single_scale()] {
+            println!("{:?}: {:.0} MAC/px, radius {}", c.channels, c.macs_per_pixel(), c.receptive_radius());
+        }
+    }
+}

@@ -1,0 +1,206 @@
+//! Image error metrics with the field's conventions: PSNR and SSIM on a fixed tonemap (exposure
+//! 1, clamp to [0,1], sRGB encode, peak 1), relMSE (ε = 0.01), SMAPE, and the seed thesis's SNR.
+//! Every metric can skip a border of `crop` pixels.
+
+use crate::{linear_to_srgb, HdrImage};
+use glam::Vec3;
+
+/// All metrics of one image against a reference.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Metrics {
+    /// PSNR in dB of the tonemapped images (infinite when identical).
+    pub psnr: f64,
+    /// Mean SSIM of the tonemapped luminance-free RGB (8×8 windows, stride 4).
+    pub ssim: f64,
+    /// Relative MSE, mean((x−y)²/(y²+0.01)).
+    pub relmse: f64,
+    /// SMAPE, mean(|x−y|/(|x|+|y|+0.01)).
+    pub smape: f64,
+    /// The thesis's SNR: mean(reference)/std(reference − test), in dB.
+    pub snr_db: f64,
+}
+
+fn pixels_in(w: u32, h: u32, crop: u32) -> impl Iterator<Item = (u32, u32)> {
+    let (x0, y0) = (crop.min(w / 2), crop.min(h / 2));
+    let (x1, y1) = (w - x0, h - y0);
+    (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (x, y)))
+}
+
+fn tonemapped(v: Vec3) -> Vec3 {
+    Vec3::new(
+        linear_to_srgb(v.x.clamp(0.0, 1.0)),
+        linear_to_srgb(v.y.clamp(0.0, 1.0)),
+        linear_to_srgb(v.z.clamp(0.0, 1.0)),
+    )
+}
+
+/// PSNR on the fixed tonemap, in dB (infinite for identical tonemapped images).
+pub fn psnr(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (x, y) in pixels_in(reference.width, reference.height, crop) {
+        let d = tonemapped(test.get(x, y)) - tonemapped(reference.get(x, y));
+        sum += (d * d).to_array().iter().map(|v| *v as f64).sum::<f64>();
+        n += 3;
+    }
+    let mse = sum / n.max(1) as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        -10.0 * mse.log10()
+    }
+}
+
+/// Mean SSIM over 8×8 windows (stride 4) of each tonemapped channel, constants for peak 1.
+pub fn ssim(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
+    let (c1, c2) = (0.01f64 * 0.01, 0.03f64 * 0.03);
+    let (w, h) = (reference.width, reference.height);
+    let (x0, y0) = (crop.min(w / 2), crop.min(h / 2));
+    let (x1, y1) = (w - x0, h - y0);
+    let win = 8u32.min(x1 - x0).min(y1 - y0).max(1);
+    let (mut total, mut count) = (0.0f64, 0usize);
+    let mut y = y0;
+    while y + win <= y1 {
+        let mut x = x0;
+        while x + win <= x1 {
+            for c in 0..3 {
+                let (mut sa, mut sb, mut saa, mut sbb, mut sab) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
+                for j in y..y + win {
+                    for i in x..x + win {
+                        let a = tonemapped(test.get(i, j))[c] as f64;
+                        let b = tonemapped(reference.get(i, j))[c] as f64;
+                        sa += a;
+                        sb += b;
+                        saa += a * a;
+                        sbb += b * b;
+                        sab += a * b;
+                    }
+                }
+                let n = (win * win) as f64;
+                let (ma, mb) = (sa / n, sb / n);
+                let (va, vb, cov) = (saa / n - ma * ma, sbb / n - mb * mb, sab / n - ma * mb);
+                // SSIM of one window: luminance × contrast-structure terms.
+                total += ((2.0 * ma * mb + c1) * (2.0 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
+                count += 1;
+            }
+            x += 4;
+        }
+        y += 4;
+    }
+    if count == 0 {
+        1.0
+    } else {
+        total / count as f64
+    }
+}
+
+/// Relative MSE: mean over channels of (x−y)²/(y²+0.01).
+pub fn relmse(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (x, y) in pixels_in(reference.width, reference.height, crop) {
+        let (a, b) = (test.get(x, y), reference.get(x, y));
+        for c in 0..3 {
+            let (a, b) = (a[c] as f64, b[c] as f64);
+            sum += (a - b) * (a - b) / (b * b + 0.01);
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// SMAPE: mean over channels of |x−y|/(|x|+|y|+0.01).
+pub fn smape(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (x, y) in pixels_in(reference.width, reference.height, crop) {
+        let (a, b) = (test.get(x, y), reference.get(x, y));
+        for c in 0..3 {
+            let (a, b) = (a[c] as f64, b[c] as f64);
+            sum += (a - b).abs() / (a.abs() + b.abs() + 0.01);
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// The thesis's SNR in dB: 20·log10(mean(reference) / std(reference − test)).
+pub fn snr_db(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
+    let (mut sr, mut sd, mut sdd, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+    for (x, y) in pixels_in(reference.width, reference.height, crop) {
+        let (a, b) = (test.get(x, y), reference.get(x, y));
+        for c in 0..3 {
+            let d = (b[c] - a[c]) as f64;
+            sr += b[c] as f64;
+            sd += d;
+            sdd += d * d;
+            n += 1;
+        }
+    }
+    let n = n.max(1) as f64;
+    let std = (sdd / n - (sd / n).powi(2)).max(0.0).sqrt();
+    if std == 0.0 {
+        f64::INFINITY
+    } else {
+        20.0 * ((sr / n).abs() / std).log10()
+    }
+}
+
+/// Every metric at once.
+pub fn metrics(test: &HdrImage, reference: &HdrImage, crop: u32) -> Metrics {
+    Metrics {
+        psnr: psnr(test, reference, crop),
+        ssim: ssim(test, reference, crop),
+        relmse: relmse(test, reference, crop),
+        smape: smape(test, reference, crop),
+        snr_db: snr_db(test, reference, crop),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> Vec3) -> HdrImage {
+        HdrImage::from_pixels(w, h, (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect())
+    }
+
+    #[test]
+    fn identical_images_are_perfect() {
+        let a = image(32, 24, |x, y| Vec3::new(x as f32 / 32.0, y as f32 / 24.0, 0.3));
+        let m = metrics(&a, &a, 2);
+        assert!(m.psnr.is_infinite() && m.snr_db.is_infinite());
+        assert!((m.ssim - 1.0).abs() < 1e-12);
+        assert_eq!((m.relmse, m.smape), (0.0, 0.0));
+    }
+
+    #[test]
+    fn a_known_error_gives_the_expected_psnr_and_relmse() {
+        // A reference of sRGB value 0.5 everywhere and a test off by ±0.1 in sRGB space
+        // (alternating): MSE = 0.01 → PSNR = 20 dB exactly.
+        let lin = crate::srgb_to_linear;
+        let r = image(40, 40, |_, _| Vec3::splat(lin(0.5)));
+        let t = image(40, 40, |x, y| Vec3::splat(lin(if (x + y) % 2 == 0 { 0.6 } else { 0.4 })));
+        assert!((psnr(&t, &r, 0) - 20.0).abs() < 1e-3, "{}", psnr(&t, &r, 0));
+        // relMSE of a constant relative error e on a bright image ≈ e².
+        let r = image(16, 16, |_, _| Vec3::splat(10.0));
+        let t = image(16, 16, |_, _| Vec3::splat(11.0));
+        assert!((relmse(&t, &r, 0) - 1.0 / 100.01).abs() < 1e-9);
+        assert!((smape(&t, &r, 0) - 1.0 / 21.01).abs() < 1e-9);
+    }
+
+    #[test]
+    fn gaussian_like_noise_gives_the_expected_snr_and_lower_ssim() {
+        // Deterministic ±s noise: std = s, mean reference m → SNR = 20 log10(m/s).
+        let r = image(64, 64, |_, _| Vec3::splat(0.4));
+        let t = image(64, 64, |x, y| Vec3::splat(0.4 + if (x * 7 + y * 3) % 2 == 0 { 0.04 } else { -0.04 }));
+        assert!((snr_db(&t, &r, 0) - 20.0).abs() < 1e-3);
+        let s = ssim(&t, &r, 0);
+        assert!(s < 0.99 && s > 0.0, "{s}");
+    }
+
+    #[test]
+    fn the_crop_excludes_the_border() {
+        let r = image(20, 20, |_, _| Vec3::splat(0.5));
+        let t = image(20, 20, |x, _| Vec3::splat(if x < 3 { 0.0 } else { 0.5 }));
+        assert!(psnr(&t, &r, 3).is_infinite());
+        assert!(psnr(&t, &r, 2).is_finite());
+    }
+}

@@ -1,0 +1,224 @@
+//! Training batches: every view of the dataset is encoded once per noisy sample count (with
+//! the auto-exposure inference would use), then random crops are cut, flipped, transposed,
+//! colour-permuted and stripped of optional guide layers, exactly as inference can see them.
+
+use std::path::Path;
+
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rtd_denoise::encode::{auto_exposure, encode_color, encode_planes};
+use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
+use rtd_image::HdrImage;
+
+use crate::dataset::{view_path, Manifest, ViewRecord};
+use crate::TrainError;
+
+/// One view, loaded.
+pub struct View {
+    /// The manifest entry.
+    pub record: ViewRecord,
+    /// Width and height.
+    pub size: (usize, usize),
+    /// Noisy renders by spp.
+    pub noisy: Vec<(u32, HdrImage)>,
+    /// The reference.
+    pub reference: HdrImage,
+    /// Guide layers: guide RGB, albedo, normal, AO, depth.
+    pub guide: HdrImage,
+    /// Albedo.
+    pub albedo: HdrImage,
+    /// Normal.
+    pub normal: HdrImage,
+    /// AO.
+    pub ao: Vec<f32>,
+    /// Depth.
+    pub depth: Vec<f32>,
+}
+
+impl View {
+    /// The denoiser input for the noisy render at `spp`, with every guide layer.
+    pub fn input(&self, spp: u32) -> DenoiseInput<'_> {
+        let color = &self.noisy.iter().find(|(s, _)| *s == spp).expect("spp level present").1;
+        DenoiseInput::new(color, &self.guide).albedo_normal(&self.albedo, &self.normal).ao_depth(&self.ao, &self.depth)
+    }
+}
+
+/// Loads the training or validation views of the dataset in `dir`.
+pub fn load_views(dir: &Path, validation: bool) -> Result<Vec<View>, TrainError> {
+    let manifest = Manifest::load(dir)?;
+    let mut views = vec![];
+    for record in manifest.views.iter().filter(|v| v.validation == validation) {
+        let path = view_path(dir, record);
+        let layers = rtd_image::read_exr(&path)?;
+        let rgb = |name: &str| layers.rgb(name).ok_or_else(|| TrainError::msg(&path, format!("missing layer {name}")));
+        let plane = |name: &str| {
+            layers
+                .get(name)
+                .map(|v| v.to_vec())
+                .ok_or_else(|| TrainError::msg(&path, format!("missing channel {name}")))
+        };
+        let mut noisy = vec![];
+        for spp in &manifest.noisy_spp {
+            noisy.push((*spp, rgb(&format!("noisy{spp}"))?));
+        }
+        let reference = rgb("reference")?;
+        views.push(View {
+            record: record.clone(),
+            size: (reference.width as usize, reference.height as usize),
+            noisy,
+            guide: rgb("guide")?,
+            albedo: rgb("albedo")?,
+            normal: layers.xyz("normal").ok_or_else(|| TrainError::msg(&path, "missing layer normal"))?,
+            ao: plane("ao.Y")?,
+            depth: plane("depth.Z")?,
+            reference,
+        });
+    }
+    Ok(views)
+}
+
+/// A view's encoded inputs and target at one sample count.
+struct Encoded {
+    w: usize,
+    h: usize,
+    planes: Vec<f32>,
+    target: Vec<f32>,
+}
+
+/// Random crops for training.
+pub struct CropSampler {
+    encoded: Vec<Encoded>,
+    /// Crop side in pixels.
+    pub crop: usize,
+}
+
+/// Probability that a crop loses its albedo+normal (and, independently, AO+depth) layers, so
+/// the model also serves colour + guide RGB inputs from other software.
+pub const DROP_PROBABILITY: f32 = 0.3;
+
+impl CropSampler {
+    /// Encodes every view at every stored sample count.
+    pub fn new(views: &[View], crop: usize) -> Result<Self, TrainError> {
+        let mut encoded = vec![];
+        for v in views {
+            for (spp, _) in &v.noisy {
+                let input = v.input(*spp);
+                let e = auto_exposure(input.color);
+                let planes = encode_planes(&input, e)?;
+                let target =
+                    (0..3).flat_map(|c| v.reference.pixels.iter().map(move |p| encode_color(p[c], e))).collect();
+                encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target });
+            }
+        }
+        Ok(CropSampler { encoded, crop })
+    }
+
+    /// A batch of `n` crops for step `step` (a pure function of seed and step, so a resumed run
+    /// sees the same batches): inputs [n, C, s, s] and targets [n, 3, s, s], channel-major.
+    pub fn batch(&self, seed: u64, step: u64, n: usize) -> (Vec<f32>, Vec<f32>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ step.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let s = self.crop;
+        let (mut xs, mut ys) = (Vec::with_capacity(n * INPUT_CHANNELS * s * s), Vec::with_capacity(n * 3 * s * s));
+        for _ in 0..n {
+            let e = &self.encoded[rng.random_range(0..self.encoded.len())];
+            let (x0, y0) = (rng.random_range(0..=e.w - s), rng.random_range(0..=e.h - s));
+            let (flip_x, flip_y, transpose) = (rng.random::<bool>(), rng.random::<bool>(), rng.random::<bool>());
+            let mut perm = [0usize, 1, 2];
+            perm.shuffle(&mut rng);
+            let drop_an = rng.random::<f32>() < DROP_PROBABILITY;
+            let drop_ad = rng.random::<f32>() < DROP_PROBABILITY;
+            let black = rng.random::<f32>() < 0.02;
+            // Source pixel of crop pixel (x, y) after the flips and transpose.
+            let src = |x: usize, y: usize| {
+                let (mut u, mut v) = if transpose { (y, x) } else { (x, y) };
+                if flip_x {
+                    u = s - 1 - u;
+                }
+                if flip_y {
+                    v = s - 1 - v;
+                }
+                (y0 + v) * e.w + x0 + u
+            };
+            let n_px = e.w * e.h;
+            for c in 0..INPUT_CHANNELS {
+                // Colour-carrying groups share one channel permutation.
+                let sc = match c {
+                    0..=8 => c / 3 * 3 + perm[c % 3],
+                    _ => c,
+                };
+                let zero = (black && c < 3)
+                    || (drop_an && (6..12).contains(&c) || c == 14 && drop_an)
+                    || (drop_ad && matches!(c, 12 | 13 | 15));
+                for y in 0..s {
+                    for x in 0..s {
+                        xs.push(if zero { 0.0 } else { e.planes[sc * n_px + src(x, y)] });
+                    }
+                }
+            }
+            for c in 0..3 {
+                for y in 0..s {
+                    for x in 0..s {
+                        ys.push(if black { 0.0 } else { e.target[perm[c] * n_px + src(x, y)] });
+                    }
+                }
+            }
+        }
+        (xs, ys)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn toy_view() -> View {
+        let (w, h) = (8u32, 8u32);
+        let img = |f: &dyn Fn(u32, u32) -> Vec3| {
+            HdrImage::from_pixels(
+                w,
+                h,
+                (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect(),
+            )
+        };
+        let color = img(&|x, y| Vec3::new(x as f32, y as f32, 1.0) * 0.1);
+        View {
+            record: ViewRecord {
+                file: String::new(),
+                scene: 0,
+                view: 0,
+                layout: crate::scenegen::Layout::ClosedRoom,
+                validation: false,
+                reference_spp: 1,
+                reference_relmse: 0.0,
+                seconds: 0.0,
+            },
+            size: (8, 8),
+            noisy: vec![(1, color.clone())],
+            reference: color.clone(),
+            guide: img(&|x, _| Vec3::new(0.2, 0.4, 0.6) * (x % 2) as f32),
+            albedo: img(&|_, _| Vec3::new(0.2, 0.4, 0.6)),
+            normal: img(&|_, _| Vec3::Z),
+            ao: vec![1.0; 64],
+            depth: vec![2.0; 64],
+        }
+    }
+
+    #[test]
+    fn batches_are_reproducible_and_augmentations_keep_input_and_target_aligned() {
+        let sampler = CropSampler::new(&[toy_view()], 8).unwrap();
+        let (x1, y1) = sampler.batch(3, 17, 4);
+        let (x2, y2) = sampler.batch(3, 17, 4);
+        assert_eq!((x1.clone(), y1.clone()), (x2, y2));
+        assert_ne!(x1, sampler.batch(3, 18, 4).0);
+        // Here target == noisy colour, so whatever the flip/transpose/permutation, the first
+        // three input channels of every non-black crop equal its target.
+        let px = 64;
+        for b in 0..4 {
+            let xin = &x1[b * INPUT_CHANNELS * px..][..3 * px];
+            let yt = &y1[b * 3 * px..][..3 * px];
+            assert_eq!(xin, yt);
+        }
+    }
+}

@@ -1,0 +1,308 @@
+//! `rtd datagen`: renders the training set. For every view of every generated scene it writes
+//! one EXR holding the noisy beauty at several sample counts (independent seeds), the guide
+//! pass and a high-spp reference, and records the view in `manifest.json`. Finished views are
+//! kept, so an interrupted run resumes where it stopped.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rtd_guide::{GuidePass, GuideSettings};
+use rtd_image::{HdrImage, Layers};
+use rtd_render::{PathTracer, RenderScene, RenderSettings};
+use serde::{Deserialize, Serialize};
+
+use crate::scenegen::{generate_scene, Layout, SceneGenOptions};
+use crate::{Progress, TrainError};
+
+/// The noisy sample counts every view is rendered at.
+pub const NOISY_SPP: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
+
+/// Options for [`generate_dataset`], builder style.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DatasetOptions {
+    /// Master seed: scenes, cameras and render seeds derive from it.
+    pub seed: u64,
+    /// Number of scenes.
+    pub scenes: u64,
+    /// Views (cameras) per scene.
+    pub views_per_scene: usize,
+    /// Image width and height.
+    pub size: u32,
+    /// Reference samples per pixel (at least); doubled once for views whose estimated
+    /// reference noise stays above `reference_relmse`.
+    pub reference_spp: u32,
+    /// Target for the reference's estimated remaining relMSE.
+    pub reference_relmse: f64,
+    /// Every `validation_every`-th scene (by index) is held out for validation.
+    pub validation_every: u64,
+}
+
+impl Default for DatasetOptions {
+    fn default() -> Self {
+        DatasetOptions {
+            seed: 1,
+            scenes: 28,
+            views_per_scene: 2,
+            size: 96,
+            reference_spp: 1024,
+            reference_relmse: 1e-3,
+            validation_every: 6,
+        }
+    }
+}
+
+impl DatasetOptions {
+    /// Sets the seed.
+    pub fn seed(mut self, s: u64) -> Self {
+        self.seed = s;
+        self
+    }
+    /// Sets the number of scenes.
+    pub fn scenes(mut self, n: u64) -> Self {
+        self.scenes = n;
+        self
+    }
+    /// Sets the image size.
+    pub fn size(mut self, s: u32) -> Self {
+        self.size = s;
+        self
+    }
+    /// Sets the reference spp.
+    pub fn reference_spp(mut self, s: u32) -> Self {
+        self.reference_spp = s;
+        self
+    }
+    /// Sets how often a scene is held out (every n-th).
+    pub fn validation_every(mut self, n: u64) -> Self {
+        self.validation_every = n.max(1);
+        self
+    }
+    /// Sets the views per scene.
+    pub fn views_per_scene(mut self, v: usize) -> Self {
+        self.views_per_scene = v;
+        self
+    }
+}
+
+/// One rendered view in the manifest.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ViewRecord {
+    /// File name of the view's EXR, relative to the dataset directory.
+    pub file: String,
+    /// Scene index.
+    pub scene: u64,
+    /// Camera index within the scene.
+    pub view: usize,
+    /// The scene's layout.
+    pub layout: Layout,
+    /// True when held out for validation.
+    pub validation: bool,
+    /// Reference samples per pixel actually rendered.
+    pub reference_spp: u32,
+    /// Estimated relMSE remaining in the reference (from two independent halves).
+    pub reference_relmse: f64,
+    /// Seconds spent rendering this view.
+    pub seconds: f64,
+}
+
+/// The dataset index written beside the views.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Manifest {
+    /// The options that made it.
+    pub options: DatasetOptions,
+    /// Noisy spp levels stored per view (`noisyN.R/G/B`).
+    pub noisy_spp: Vec<u32>,
+    /// Finished views.
+    pub views: Vec<ViewRecord>,
+    /// Views rejected as black or empty, as "scene/view".
+    pub rejected: Vec<String>,
+}
+
+impl Manifest {
+    /// Reads `dir/manifest.json`.
+    pub fn load(dir: &Path) -> Result<Manifest, TrainError> {
+        let path = dir.join("manifest.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| TrainError::io(&path, e))?;
+        serde_json::from_str(&text).map_err(|e| TrainError::msg(&path, format!("not a dataset manifest: {e}")))
+    }
+
+    fn save(&self, dir: &Path) -> Result<(), TrainError> {
+        let path = dir.join("manifest.json");
+        let text = serde_json::to_vec_pretty(self).map_err(|e| TrainError::msg(&path, e.to_string()))?;
+        rtd_image::write_atomic(&path, |w| {
+            std::io::Write::write_all(w, &text).map_err(|e| rtd_image::ImageError::io(&path, e))
+        })?;
+        Ok(())
+    }
+}
+
+/// A seed for one render of one view: distinct for every (scene, view, purpose).
+fn render_seed(master: u64, scene: u64, view: usize, purpose: u64) -> u64 {
+    let mut z = master
+        ^ scene.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (view as u64).wrapping_mul(0xD1B5_4A32_D192_ED03)
+        ^ purpose.wrapping_mul(0x8CB9_2BA7_2F3D_8DD7);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z ^ (z >> 31)
+}
+
+fn luminance(v: glam::Vec3) -> f32 {
+    0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z
+}
+
+/// Renders `spp` samples with `seed` and returns the beauty.
+fn beauty(rs: &RenderScene, cam: &rtd_scene::Camera, size: u32, seed: u64, spp: u32) -> Result<HdrImage, TrainError> {
+    let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(size, size).seed(seed))?;
+    let mut film = tracer.film();
+    tracer.render(&mut film, spp)?;
+    Ok(film.beauty())
+}
+
+/// Why a view is unusable, if it is: black (almost no light) or empty (mostly sky or one flat colour).
+fn reject_reason(preview: &HdrImage, guide: &GuidePass) -> Option<&'static str> {
+    let mean = luminance(preview.mean());
+    if !(mean > 1e-3) {
+        return Some("black");
+    }
+    let hit = guide.depth.iter().filter(|d| **d > 0.0).count() as f32 / guide.depth.len() as f32;
+    let albedo_mean = guide.albedo.mean();
+    let spread = guide.albedo.pixels.iter().map(|a| (*a - albedo_mean).abs().max_element()).sum::<f32>()
+        / guide.depth.len() as f32;
+    if hit < 0.5 || spread < 0.02 {
+        return Some("empty");
+    }
+    None
+}
+
+/// Generates (or resumes) the dataset in `dir`. Returns the manifest.
+pub fn generate_dataset(dir: &Path, options: &DatasetOptions, progress: &dyn Progress) -> Result<Manifest, TrainError> {
+    std::fs::create_dir_all(dir.join("scenes")).map_err(|e| TrainError::io(dir, e))?;
+    let mut manifest = match Manifest::load(dir) {
+        Ok(m) if m.options == *options => m,
+        Ok(_) => {
+            return Err(TrainError::msg(&dir.join("manifest.json"), "was made with other options; use a new directory"))
+        }
+        Err(_) => Manifest { options: options.clone(), noisy_spp: NOISY_SPP.to_vec(), views: vec![], rejected: vec![] },
+    };
+    let total = options.scenes * options.views_per_scene as u64;
+    progress.start(total, "datagen");
+    progress.inc((manifest.views.len() + manifest.rejected.len()) as u64);
+    let size = options.size;
+    for scene_index in 0..options.scenes {
+        let done = |m: &Manifest, v: usize| {
+            let key = format!("{scene_index}/{v}");
+            m.views.iter().any(|r| r.scene == scene_index && r.view == v) || m.rejected.contains(&key)
+        };
+        if (0..options.views_per_scene).all(|v| done(&manifest, v)) {
+            continue;
+        }
+        let (gen, layout) = generate_scene(
+            options.seed,
+            scene_index,
+            &SceneGenOptions { views: options.views_per_scene, texture_size: 256 },
+        );
+        let name = format!("scene{scene_index:04}");
+        gen.write(&dir.join("scenes"), &name)?;
+        let scene = rtd_scene::load_scene(&dir.join("scenes").join(format!("{name}.gltf")))?;
+        let rs = RenderScene::new(scene);
+        for view in 0..options.views_per_scene {
+            if done(&manifest, view) {
+                continue;
+            }
+            if progress.cancelled() {
+                return Ok(manifest);
+            }
+            let start = Instant::now();
+            let cam = rs.scene.cameras[view].clone();
+            let guide = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(size, size))?;
+            let preview = beauty(&rs, &cam, size, render_seed(options.seed, scene_index, view, 99), 4)?;
+            if let Some(why) = reject_reason(&preview, &guide) {
+                manifest.rejected.push(format!("{scene_index}/{view}"));
+                progress.note(&format!("scene {scene_index} view {view} rejected: {why}"));
+                manifest.save(dir)?;
+                progress.inc(1);
+                continue;
+            }
+            let mut layers = Layers::new(size, size);
+            for (k, spp) in NOISY_SPP.iter().enumerate() {
+                let img = beauty(&rs, &cam, size, render_seed(options.seed, scene_index, view, k as u64), *spp)?;
+                layers.push_rgb(&format!("noisy{spp}"), &img);
+            }
+            guide.add_to(&mut layers);
+            // Reference: independent halves; their difference estimates the noise left in the mean.
+            let mut halves: Vec<HdrImage> = vec![];
+            let mut reference_relmse;
+            let mut round = 0u64;
+            loop {
+                for h in 0..2 {
+                    halves.push(beauty(
+                        &rs,
+                        &cam,
+                        size,
+                        render_seed(options.seed, scene_index, view, 100 + round * 2 + h),
+                        options.reference_spp / 2,
+                    )?);
+                }
+                let (a, b) = mean_of_halves(&halves);
+                // Var(mean of all) = E[(a−b)²]/4 when a, b are the means of the two halves.
+                let diff = HdrImage::from_pixels(
+                    size,
+                    size,
+                    a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x - *y) * 0.5).collect(),
+                );
+                let both = average(&a, &b);
+                reference_relmse = diff
+                    .pixels
+                    .iter()
+                    .zip(&both.pixels)
+                    .map(|(d, r)| (0..3).map(|c| (d[c] as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>())
+                    .sum::<f64>()
+                    / (3 * size * size) as f64;
+                round += 1;
+                if reference_relmse <= options.reference_relmse || round >= 2 {
+                    layers.push_rgb("reference", &both);
+                    break;
+                }
+            }
+            let file = format!("views/{name}_v{view}.exr");
+            std::fs::create_dir_all(dir.join("views")).map_err(|e| TrainError::io(dir, e))?;
+            rtd_image::write_exr(&dir.join(&file), &layers)?;
+            manifest.views.push(ViewRecord {
+                file,
+                scene: scene_index,
+                view,
+                layout,
+                validation: scene_index % options.validation_every == options.validation_every - 1,
+                reference_spp: options.reference_spp * round as u32,
+                reference_relmse,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+            manifest.save(dir)?;
+            progress.inc(1);
+        }
+    }
+    Ok(manifest)
+}
+
+/// The mean of the even-numbered and of the odd-numbered half renders.
+fn mean_of_halves(halves: &[HdrImage]) -> (HdrImage, HdrImage) {
+    let pick = |parity: usize| {
+        let imgs: Vec<&HdrImage> = halves.iter().skip(parity).step_by(2).collect();
+        let n = imgs.len() as f32;
+        let mut out = imgs[0].clone();
+        for (i, p) in out.pixels.iter_mut().enumerate() {
+            *p = imgs.iter().map(|im| im.pixels[i]).sum::<glam::Vec3>() / n;
+        }
+        out
+    };
+    (pick(0), pick(1))
+}
+
+fn average(a: &HdrImage, b: &HdrImage) -> HdrImage {
+    HdrImage::from_pixels(a.width, a.height, a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x + *y) * 0.5).collect())
+}
+
+/// The path of a view's EXR.
+pub fn view_path(dir: &Path, record: &ViewRecord) -> PathBuf {
+    dir.join(&record.file)
+}

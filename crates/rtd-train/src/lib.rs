@@ -1,0 +1,74 @@
+//! Self-contained training for rtd's denoiser: the procedural scene generator
+//! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]) and the training loop
+//! ([`train`]).
+
+pub mod data;
+pub mod dataset;
+pub mod evaluate;
+pub mod plot;
+pub mod scenegen;
+pub mod train;
+
+use std::path::{Path, PathBuf};
+
+/// Errors from dataset generation and training; each names the file concerned.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// A file or directory could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A file's content is wrong.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The file concerned.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// Image I/O failed.
+    #[error(transparent)]
+    Image(#[from] rtd_image::ImageError),
+    /// A generated scene failed to load.
+    #[error(transparent)]
+    Scene(#[from] rtd_scene::SceneError),
+    /// Rendering failed.
+    #[error(transparent)]
+    Render(#[from] rtd_render::RenderError),
+    /// The denoiser failed.
+    #[error(transparent)]
+    Denoise(#[from] rtd_denoise::DenoiseError),
+}
+
+impl TrainError {
+    /// An I/O error on `path`.
+    pub fn io(path: &Path, source: std::io::Error) -> Self {
+        TrainError::Io { path: path.to_path_buf(), source }
+    }
+    /// A content error on `path`.
+    pub fn msg(path: &Path, message: impl Into<String>) -> Self {
+        TrainError::Invalid { path: path.to_path_buf(), message: message.into() }
+    }
+}
+
+/// Progress reporting and cancellation for long library calls (the CLI shows a bar).
+pub trait Progress: Sync {
+    /// A new phase of `len` units begins.
+    fn start(&self, _len: u64, _what: &str) {}
+    /// `n` more units are done.
+    fn inc(&self, _n: u64) {}
+    /// A line worth showing the user.
+    fn note(&self, _line: &str) {}
+    /// True when the user asked to stop; work stops after the unit in flight, keeping what is done.
+    fn cancelled(&self) -> bool {
+        false
+    }
+}
+
+/// A [`Progress`] that shows nothing and never cancels.
+pub struct Quiet;
+impl Progress for Quiet {}

@@ -1,0 +1,314 @@
+//! `rtd train`: Adam on random crops with a warm-up + cosine learning-rate schedule, L1 loss on
+//! log-encoded HDR colour, validation (PSNR, SSIM, relMSE against the noisy input) on held-out
+//! scenes every epoch, and resumable checkpoints.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::store::ModuleRecord;
+use burn::tensor::{Device, Tensor, TensorData};
+use rtd_denoise::{Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
+use rtd_image::metrics;
+use serde::{Deserialize, Serialize};
+
+use crate::data::{load_views, CropSampler, View};
+use crate::{Progress, TrainError};
+
+/// Training options, builder style.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TrainOptions {
+    /// The network to train.
+    pub config: DenoiserConfig,
+    /// Seed for weights and batches.
+    pub seed: u64,
+    /// Optimiser steps in all.
+    pub steps: u64,
+    /// Crops per batch.
+    pub batch: usize,
+    /// Crop side in pixels.
+    pub crop: usize,
+    /// Peak learning rate.
+    pub learning_rate: f64,
+    /// Steps per epoch (validation and checkpoint after each).
+    pub epoch_steps: u64,
+    /// Validation sample count.
+    pub validation_spp: u32,
+}
+
+impl Default for TrainOptions {
+    fn default() -> Self {
+        TrainOptions {
+            config: DenoiserConfig::unet(),
+            seed: 1,
+            steps: 3000,
+            batch: 8,
+            crop: 64,
+            learning_rate: 2e-3,
+            epoch_steps: 200,
+            validation_spp: 8,
+        }
+    }
+}
+
+impl TrainOptions {
+    /// Sets the step count.
+    pub fn steps(mut self, n: u64) -> Self {
+        self.steps = n;
+        self
+    }
+    /// Sets the seed.
+    pub fn seed(mut self, s: u64) -> Self {
+        self.seed = s;
+        self
+    }
+    /// Sets the network config.
+    pub fn config(mut self, c: DenoiserConfig) -> Self {
+        self.config = c;
+        self
+    }
+    /// Sets batch size and crop side.
+    pub fn batch(mut self, batch: usize, crop: usize) -> Self {
+        self.batch = batch;
+        self.crop = crop;
+        self
+    }
+    /// Sets steps per epoch.
+    pub fn epoch_steps(mut self, n: u64) -> Self {
+        self.epoch_steps = n;
+        self
+    }
+
+    /// Learning rate at `step`: linear warm-up over 5% of the steps, then cosine decay to 1%.
+    pub fn learning_rate_at(&self, step: u64) -> f64 {
+        let warm = (self.steps / 20).max(1);
+        if step < warm {
+            return self.learning_rate * (step + 1) as f64 / warm as f64;
+        }
+        let t = (step - warm) as f64 / (self.steps - warm).max(1) as f64;
+        self.learning_rate * (0.01 + 0.99 * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()))
+    }
+}
+
+/// Validation numbers after one epoch (means over the validation views).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct EpochRecord {
+    /// Steps done.
+    pub step: u64,
+    /// Mean training loss over the epoch.
+    pub train_loss: f64,
+    /// Denoised PSNR (dB).
+    pub psnr: f64,
+    /// Denoised SSIM.
+    pub ssim: f64,
+    /// Denoised relMSE.
+    pub relmse: f64,
+    /// Noisy-input PSNR, the baseline.
+    pub noisy_psnr: f64,
+    /// Noisy-input SSIM.
+    pub noisy_ssim: f64,
+    /// Noisy-input relMSE.
+    pub noisy_relmse: f64,
+    /// Training throughput over the epoch, crops per second.
+    pub crops_per_s: f64,
+    /// Wall seconds of training so far (all sessions).
+    pub wall_s: f64,
+}
+
+/// The resumable training state (`state.json` beside the checkpoint).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TrainState {
+    /// The options of the run.
+    pub options: TrainOptions,
+    /// Steps done.
+    pub step: u64,
+    /// One record per finished epoch.
+    pub history: Vec<EpochRecord>,
+    /// Per-step training losses.
+    pub losses: Vec<f32>,
+}
+
+/// Files of a training run in `out`.
+struct RunFiles {
+    state: PathBuf,
+    weights: PathBuf,
+    optimizer: PathBuf,
+}
+
+impl RunFiles {
+    fn new(out: &Path) -> Self {
+        RunFiles {
+            state: out.join("state.json"),
+            weights: out.join("checkpoint.bpk"),
+            optimizer: out.join("optimizer.bpk"),
+        }
+    }
+}
+
+fn save_record(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+    rtd_image::write_atomic(path, |w| {
+        std::io::Write::write_all(w, bytes).map_err(|e| rtd_image::ImageError::io(path, e))
+    })?;
+    Ok(())
+}
+
+/// Mean metrics of `net` on the validation views at `spp`: (denoised, noisy).
+pub fn validate(
+    denoiser: &Denoiser,
+    views: &[View],
+    spp: u32,
+) -> Result<(metrics::Metrics, metrics::Metrics), TrainError> {
+    let mut sums = [[0.0f64; 3]; 2];
+    for v in views {
+        let input = v.input(spp);
+        let out = denoiser.denoise(&input)?;
+        for (k, img) in [&out, input.color].into_iter().enumerate() {
+            let m = metrics::metrics(img, &v.reference, 0);
+            sums[k][0] += m.psnr;
+            sums[k][1] += m.ssim;
+            sums[k][2] += m.relmse;
+        }
+    }
+    let n = views.len().max(1) as f64;
+    let mk = |s: [f64; 3]| metrics::Metrics {
+        psnr: s[0] / n,
+        ssim: s[1] / n,
+        relmse: s[2] / n,
+        smape: f64::NAN,
+        snr_db: f64::NAN,
+    };
+    Ok((mk(sums[0]), mk(sums[1])))
+}
+
+/// A copy of the network on the plain (non-autodiff) CPU device, for inference.
+fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser, TrainError> {
+    let device = Device::flex();
+    let inference = config.init(&device).load_record(net.clone().into_record());
+    Ok(Denoiser::from_net(inference, config.clone(), device, "training"))
+}
+
+/// Trains (or, with `resume`, continues training) on the dataset in `data`, writing
+/// checkpoints, `state.json`, and finally `model.bpk` + `model.json` into `out`.
+pub fn train(
+    data: &Path,
+    out: &Path,
+    options: &TrainOptions,
+    resume: bool,
+    progress: &dyn Progress,
+) -> Result<TrainState, TrainError> {
+    std::fs::create_dir_all(out).map_err(|e| TrainError::io(out, e))?;
+    let files = RunFiles::new(out);
+    let device = Device::flex().autodiff();
+    device.seed(options.seed);
+    let (mut net, mut optim, mut state) = if files.state.exists() {
+        if !resume {
+            return Err(TrainError::msg(
+                &files.state,
+                "a training run is already here; pass --resume to continue it or choose a new directory",
+            ));
+        }
+        let text = std::fs::read_to_string(&files.state).map_err(|e| TrainError::io(&files.state, e))?;
+        let state: TrainState =
+            serde_json::from_str(&text).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
+        if state.options != *options {
+            return Err(TrainError::msg(&files.state, "was written with other training options"));
+        }
+        let record = ModuleRecord::load(&files.weights).map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
+        let net = options
+            .config
+            .init(&device)
+            .try_load_record(record)
+            .map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
+        let optim_record = burn::optim::OptimizerRecord::load(&files.optimizer)
+            .map_err(|e| TrainError::msg(&files.optimizer, e.to_string()))?;
+        let optim = AdamConfig::new().init().load_record(optim_record);
+        (net, optim, state)
+    } else {
+        (
+            options.config.init(&device),
+            AdamConfig::new().init(),
+            TrainState { options: options.clone(), step: 0, history: vec![], losses: vec![] },
+        )
+    };
+    let train_views = load_views(data, false)?;
+    let val_views = load_views(data, true)?;
+    if train_views.is_empty() {
+        return Err(TrainError::msg(&data.join("manifest.json"), "has no training views"));
+    }
+    let sampler = CropSampler::new(&train_views, options.crop)?;
+    progress.start(options.steps, "train");
+    progress.inc(state.step);
+    let mut epoch_start = Instant::now();
+    let mut epoch_losses = vec![];
+    let prior_wall = state.history.last().map(|h| h.wall_s).unwrap_or(0.0);
+    let session = Instant::now();
+    let (b, s) = (options.batch, options.crop);
+    while state.step < options.steps {
+        if progress.cancelled() {
+            break;
+        }
+        let (xs, ys) = sampler.batch(options.seed, state.step, b);
+        let x = Tensor::<4>::from_data(TensorData::new(xs, [b, INPUT_CHANNELS, s, s]), &device);
+        let y = Tensor::<4>::from_data(TensorData::new(ys, [b, 3, s, s]), &device);
+        // L1 on log-encoded colour.
+        let loss = (net.forward(x) - y).abs().mean();
+        let loss_value = loss.clone().into_data().try_into_vec::<f32>().map(|v| v[0]).unwrap_or(f32::NAN);
+        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        net = optim.step(options.learning_rate_at(state.step), net, grads);
+        state.losses.push(loss_value);
+        epoch_losses.push(loss_value as f64);
+        state.step += 1;
+        progress.inc(1);
+        if state.step % options.epoch_steps == 0 || state.step == options.steps {
+            let crops_per_s = (epoch_losses.len() * b) as f64 / epoch_start.elapsed().as_secs_f64();
+            let (den, noisy) = validate(&inference_copy(&net, &options.config)?, &val_views, options.validation_spp)?;
+            let rec = EpochRecord {
+                step: state.step,
+                train_loss: epoch_losses.iter().sum::<f64>() / epoch_losses.len().max(1) as f64,
+                psnr: den.psnr,
+                ssim: den.ssim,
+                relmse: den.relmse,
+                noisy_psnr: noisy.psnr,
+                noisy_ssim: noisy.ssim,
+                noisy_relmse: noisy.relmse,
+                crops_per_s,
+                wall_s: prior_wall + session.elapsed().as_secs_f64(),
+            };
+            progress.note(&format!(
+                "step {:>6}  loss {:.4}  val PSNR {:.2} dB (noisy {:.2})  SSIM {:.3} ({:.3})  relMSE {:.4} ({:.4})  {:.1} crops/s",
+                rec.step, rec.train_loss, rec.psnr, rec.noisy_psnr, rec.ssim, rec.noisy_ssim, rec.relmse, rec.noisy_relmse, rec.crops_per_s
+            ));
+            state.history.push(rec);
+            checkpoint(&files, &net, &optim, &state)?;
+            epoch_losses.clear();
+            epoch_start = Instant::now();
+        }
+    }
+    if state.step >= options.steps {
+        let bytes = net
+            .valid()
+            .into_record()
+            .into_bytes()
+            .map_err(|e| TrainError::msg(&out.join("model.bpk"), e.to_string()))?;
+        save_record(&out.join("model.bpk"), &bytes)?;
+        let cfg = serde_json::to_vec_pretty(&options.config).map_err(|e| TrainError::msg(out, e.to_string()))?;
+        save_record(&out.join("model.json"), &cfg)?;
+    }
+    Ok(state)
+}
+
+/// Writes weights, optimiser state and `state.json`, each atomically, state last.
+fn checkpoint(
+    files: &RunFiles,
+    net: &DenoiserNet,
+    optim: &ModuleOptimizer,
+    state: &TrainState,
+) -> Result<(), TrainError> {
+    let weights = net.clone().into_record().into_bytes().map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
+    save_record(&files.weights, &weights)?;
+    let opt = optim.to_record().into_bytes().map_err(|e| TrainError::msg(&files.optimizer, e.to_string()))?;
+    save_record(&files.optimizer, &opt)?;
+    let text = serde_json::to_vec(state).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
+    save_record(&files.state, &text)
+}

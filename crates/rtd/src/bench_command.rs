@@ -1,0 +1,103 @@
+//! `rtd bench`: thin wrappers over the library's benchmark reports.
+
+use anyhow::Context;
+
+use crate::args::{BenchArgs, BenchCommand, EtrtArgs, SpeedArgs, SuiteArgs, ValidationArgs};
+use crate::denoise_command::load_model;
+use crate::progress::TaskBar;
+use crate::render_command::write_json;
+
+/// Runs `rtd bench …`.
+pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
+    match &args.which {
+        BenchCommand::Validation(a) => validation(a),
+        BenchCommand::Etrt(a) => etrt(a),
+        BenchCommand::Suite(a) => suite(a),
+        BenchCommand::Speed(a) => speed(a),
+    }
+}
+
+fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
+    let model = load_model(args.model.as_ref())?;
+    let bar = TaskBar::new(args.quiet);
+    let report =
+        rtd_bench::speed::run_speed(&args.scene, &model, args.width, args.height, args.spp, args.runs as usize, &bar)?;
+    bar.finish();
+    if let Some(p) = &args.report {
+        write_json(p, &report)?;
+    }
+    println!("{}", report.markdown());
+    Ok(())
+}
+
+fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
+    let model = load_model(args.model.as_ref())?;
+    let mut scenes = vec![];
+    let inputs = if args.scenes.is_empty() { vec![std::path::PathBuf::from("scenes")] } else { args.scenes.clone() };
+    for p in inputs {
+        if p.is_dir() {
+            let mut found: Vec<_> = std::fs::read_dir(&p)
+                .with_context(|| format!("{}: cannot list directory", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| matches!(f.extension().and_then(|e| e.to_str()), Some("gltf" | "glb" | "obj")))
+                .collect();
+            found.sort();
+            scenes.extend(found);
+        } else {
+            scenes.push(p);
+        }
+    }
+    if scenes.is_empty() {
+        anyhow::bail!("no scenes found (give .gltf/.glb/.obj files or directories)");
+    }
+    let options = rtd_bench::EtrtOptions {
+        spp: args.spp,
+        width: args.width,
+        height: args.height,
+        reference_spp: args.reference_spp,
+        ..Default::default()
+    };
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+    let bar = TaskBar::new(args.quiet);
+    let results = rtd_bench::suite::run_suite(&scenes, &model, &options, &args.output, &bar)?;
+    bar.finish();
+    println!("{}", rtd_bench::suite::summary_markdown(&results));
+    Ok(())
+}
+
+fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
+    let model = load_model(args.model.as_ref())?;
+    let options = rtd_bench::EtrtOptions {
+        spp: args.spp,
+        width: args.width,
+        height: args.height,
+        seed: args.seed,
+        reference_spp: args.reference_spp,
+        ..Default::default()
+    };
+    let bar = TaskBar::new(args.quiet);
+    let cache = args.output.join("cache");
+    let (report, images) = rtd_bench::run_etrt(&args.scene, &model, &options, args.reference.as_deref(), &cache, &bar)?;
+    bar.finish();
+    rtd_bench::etrt::write_etrt(&args.output, &report, &images)?;
+    println!("{}", report.markdown());
+    Ok(())
+}
+
+fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
+    let model = load_model(args.model.as_ref())?;
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+    let bar = TaskBar::new(args.quiet);
+    let report = rtd_train::evaluate::validation_report(&args.data, &model, args.spp, &args.external, &bar)?;
+    bar.finish();
+    write_json(&args.output.join("report.json"), &report)?;
+    let md = report.markdown();
+    let path = args.output.join("report.md");
+    rtd_image::write_atomic(&path, |w| {
+        std::io::Write::write_all(w, md.as_bytes()).map_err(|e| rtd_image::ImageError::io(&path, e))
+    })?;
+    println!("{md}");
+    Ok(())
+}

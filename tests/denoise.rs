@@ -1,0 +1,125 @@
+//! The shipped denoiser: structural properties that must hold for any trained weights, and the
+//! fast inference path held to burn's output.
+
+use glam::Vec3;
+use rtd::denoise::{DenoiseInput, Denoiser};
+use rtd::image::HdrImage;
+
+mod common;
+
+fn model() -> Denoiser {
+    Denoiser::builtin().expect("the built-in model loads")
+}
+
+/// A rendered Cornell box at 8 spp with its guide pass: (colour, guide pass).
+fn cornell_inputs(w: u32, h: u32) -> (HdrImage, rtd::guide::GuidePass) {
+    let scene = rtd::render::RenderScene::new(common::cornell());
+    let cam = scene.scene.cameras[0].clone();
+    let tracer =
+        rtd::render::PathTracer::new(&scene, cam.clone(), rtd::render::RenderSettings::new(w, h).seed(5)).unwrap();
+    let mut film = tracer.film();
+    tracer.render(&mut film, 8).unwrap();
+    let g =
+        rtd::guide::GuidePass::render(&scene.scene, &scene.bvh, &cam, &rtd::guide::GuideSettings::new(w, h)).unwrap();
+    (film.beauty(), g)
+}
+
+fn full_input<'a>(color: &'a HdrImage, g: &'a rtd::guide::GuidePass) -> DenoiseInput<'a> {
+    DenoiseInput::new(color, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth)
+}
+
+#[test]
+fn tiled_equals_untiled_and_the_fast_path_equals_burn() {
+    let (color, g) = cornell_inputs(150, 118);
+    let input = full_input(&color, &g);
+    let whole = model().tile(1024).denoise(&input).unwrap();
+    let tiled = model().tile(40).denoise(&input).unwrap();
+    let burn = model().tile(1024).with_burn(true).denoise(&input).unwrap();
+    // Compare in the encoded (log) domain scale: relative to the pixel value.
+    let rel = |a: &HdrImage, b: &HdrImage| {
+        a.pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(x, y)| ((*x - *y).abs() / (x.abs().max(y.abs()) + Vec3::splat(1e-3))).max_element())
+            .fold(0.0, f32::max)
+    };
+    assert!(rel(&whole, &tiled) < 1e-4, "tiled vs untiled: {}", rel(&whole, &tiled));
+    assert!(rel(&whole, &burn) < 1e-4, "fast vs burn: {}", rel(&whole, &burn));
+}
+
+#[test]
+fn the_same_input_gives_identical_bytes() {
+    let (color, g) = cornell_inputs(64, 48);
+    let a = model().denoise(&full_input(&color, &g)).unwrap();
+    let b = model().denoise(&full_input(&color, &g)).unwrap();
+    assert_eq!(a.pixels, b.pixels);
+}
+
+#[test]
+fn receptive_field_reaches_at_least_15_pixels_and_no_further_than_the_margin() {
+    // On encoded planes (auto-exposure is global by design, so it is held fixed here).
+    let m = model();
+    let radius = m.config().receptive_radius();
+    assert!(radius >= 15, "receptive field below 31x31");
+    let (w, h) = (160usize, 160usize);
+    let c = rtd::denoise::INPUT_CHANNELS;
+    let mut planes: Vec<f32> = (0..c * w * h).map(|i| 0.3 + 0.2 * ((i * 37 % 11) as f32 / 11.0)).collect();
+    let a = m.run_planes(&planes, w, h);
+    planes[80 * w + 80] += 3.0; // colour channel 0 at (80, 80)
+    let b = m.run_planes(&planes, w, h);
+    let mut reach = 0usize;
+    for ch in 0..3 {
+        for y in 0..h {
+            for x in 0..w {
+                if a[ch * w * h + y * w + x] != b[ch * w * h + y * w + x] {
+                    reach = reach.max(x.abs_diff(80).max(y.abs_diff(80)));
+                }
+            }
+        }
+    }
+    assert!(reach >= 15, "influence reaches only {reach} px");
+    assert!(reach <= radius, "influence reaches {reach} px, beyond the receptive radius {radius}");
+}
+
+#[test]
+fn black_input_gives_black_output_and_constants_stay_constant() {
+    let m = model();
+    let (w, h) = (48u32, 40u32);
+    let zero = HdrImage::new(w, h);
+    let grey = HdrImage::from_pixels(w, h, vec![Vec3::splat(0.5); (w * h) as usize]);
+    let out = m.denoise(&DenoiseInput::new(&zero, &grey)).unwrap();
+    let worst = out.pixels.iter().map(|p| p.max_element()).fold(0.0, f32::max);
+    assert!(worst < 2e-3, "black input gave up to {worst}");
+    for value in [0.05f32, 0.7, 30.0] {
+        let c = HdrImage::from_pixels(w, h, vec![Vec3::splat(value); (w * h) as usize]);
+        let out = m.denoise(&DenoiseInput::new(&c, &grey)).unwrap();
+        // Every output pixel sees the same (edge-replicated) neighbourhood: exactly uniform.
+        let first = out.pixels[0];
+        assert!(
+            out.pixels.iter().all(|p| (*p - first).abs().max_element() <= 1e-6 * value),
+            "output not uniform for {value}"
+        );
+        assert!(((first.x / value) - 1.0).abs() < 0.05, "constant {value} became {first:?}");
+    }
+}
+
+#[test]
+fn nan_and_inf_inputs_give_finite_output() {
+    let (mut color, g) = cornell_inputs(40, 40);
+    color.set(3, 3, Vec3::new(f32::NAN, 1.0, 1.0));
+    color.set(20, 20, Vec3::splat(f32::INFINITY));
+    color.set(30, 10, Vec3::splat(1e6));
+    color.set(31, 10, Vec3::splat(-4.0));
+    let out = model().denoise(&full_input(&color, &g)).unwrap();
+    assert!(out.is_finite());
+}
+
+#[test]
+fn one_pixel_and_odd_sizes_work() {
+    for (w, h) in [(1u32, 1u32), (3, 17), (17, 5)] {
+        let c = HdrImage::from_pixels(w, h, vec![Vec3::new(0.3, 0.2, 0.1); (w * h) as usize]);
+        let out = model().denoise(&DenoiseInput::new(&c, &c)).unwrap();
+        assert_eq!((out.width, out.height), (w, h));
+        assert!(out.is_finite());
+    }
+}

@@ -1,0 +1,176 @@
+//! `rtd denoise` and `rtd render --denoise` end to end, including every bad-input case.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rtd(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtd")).args(args).output().expect("run rtd")
+}
+
+fn cornell() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf").display().to_string()
+}
+
+fn assert_fails(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure; stderr: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
+    assert!(err.contains(needle), "error should mention '{needle}': {err}");
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Renders a small noisy EXR with all guide layers; returns its path.
+fn noisy_exr(dir: &Path, w: u32, h: u32) -> PathBuf {
+    let out = dir.join(format!("noisy{w}x{h}.exr"));
+    let o = rtd(&[
+        "render",
+        &cornell(),
+        "-o",
+        s(&out),
+        "--spp",
+        "4",
+        "--width",
+        &w.to_string(),
+        "--height",
+        &h.to_string(),
+        "--aov",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
+#[test]
+fn render_denoise_writes_denoised_noisy_and_guide_layers_and_reports_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("d.exr");
+    let report = dir.path().join("r.json");
+    let o = rtd(&[
+        "render",
+        &cornell(),
+        "-o",
+        s(&exr),
+        "--spp",
+        "4",
+        "--width",
+        "40",
+        "--height",
+        "32",
+        "--denoise",
+        "--report",
+        s(&report),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let layers = rtd::image::read_exr(&exr).unwrap();
+    for ch in ["R", "G", "B", "noisy.R", "noisy.G", "noisy.B", "guide.R", "albedo.G", "normal.Z", "depth.Z", "ao.Y"] {
+        assert!(layers.get(ch).is_some(), "missing {ch}");
+    }
+    assert_ne!(layers.get("R"), layers.get("noisy.R"), "R,G,B must be the denoised image");
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in ["render_s", "guide_s", "denoise_s"] {
+        assert!(r[key].as_f64().unwrap() > 0.0, "{key}");
+    }
+    assert!(r["denoise_model"].as_str().unwrap().starts_with("builtin:"));
+    // PNG output is the denoised image.
+    let png = dir.path().join("d.png");
+    let o =
+        rtd(&["render", &cornell(), "-o", s(&png), "--spp", "4", "--width", "40", "--height", "32", "--denoise", "-q"]);
+    assert!(o.status.success());
+    assert!(png.exists());
+}
+
+#[test]
+fn denoise_reads_exr_and_png_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let noisy = noisy_exr(dir.path(), 36, 28);
+    let out = dir.path().join("o.exr");
+    let report = dir.path().join("r.json");
+    let o = rtd(&[
+        "denoise",
+        "--color",
+        s(&noisy),
+        "--guide",
+        s(&noisy),
+        "--albedo",
+        s(&noisy),
+        "--normal",
+        s(&noisy),
+        "-o",
+        s(&out),
+        "--report",
+        s(&report),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let l = rtd::image::read_exr(&out).unwrap();
+    assert_eq!((l.width, l.height), (36, 28));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(r["denoise_s"].as_f64().unwrap() > 0.0);
+    // Colour and guide as sRGB PNGs (another renderer's beauty and material render).
+    let (cp, gp) = (dir.path().join("c.png"), dir.path().join("g.png"));
+    let img = rtd::image::read_exr(&noisy).unwrap();
+    rtd::image::write_ldr(&cp, &img.rgb("").unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
+    rtd::image::write_ldr(&gp, &img.rgb("guide").unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
+    let outp = dir.path().join("o.png");
+    let o = rtd(&["denoise", "--color", s(&cp), "--guide", s(&gp), "-o", s(&outp)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(outp.exists());
+}
+
+#[test]
+fn denoise_bad_inputs_fail_cleanly_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = noisy_exr(d, 24, 16);
+    let b = noisy_exr(d, 20, 16);
+    let out = d.join("out.exr");
+    // Different sizes.
+    assert_fails(&rtd(&["denoise", "--color", s(&a), "--guide", s(&b), "-o", s(&out)]), "20x16");
+    // Missing image.
+    assert_fails(&rtd(&["denoise", "--color", s(&d.join("nope.exr")), "--guide", s(&a), "-o", s(&out)]), "nope.exr");
+    // Unreadable (corrupt) image.
+    let junk = d.join("junk.png");
+    std::fs::write(&junk, b"not a png at all").unwrap();
+    assert_fails(&rtd(&["denoise", "--color", s(&junk), "--guide", s(&a), "-o", s(&out)]), "junk.png");
+    // No guide at all.
+    assert_fails(&rtd(&["denoise", "--color", s(&a), "-o", s(&out)]), "--guide");
+    // Missing model, corrupt model, and a model whose channels do not match.
+    assert_fails(
+        &rtd(&["denoise", "--color", s(&a), "--guide", s(&a), "--model", s(&d.join("m.bpk")), "-o", s(&out)]),
+        "m.bpk",
+    );
+    let m = d.join("bad.bpk");
+    std::fs::write(&m, b"\x00garbage weights").unwrap();
+    std::fs::write(d.join("bad.json"), include_str!("../models/rtd-denoiser.json")).unwrap();
+    assert_fails(&rtd(&["denoise", "--color", s(&a), "--guide", s(&a), "--model", s(&m), "-o", s(&out)]), "corrupt");
+    let wrong = d.join("wrong.bpk");
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rtd-denoiser.bpk"), &wrong).unwrap();
+    let cfg = include_str!("../models/rtd-denoiser.json").replace("\"input_channels\": 16", "\"input_channels\": 9");
+    std::fs::write(d.join("wrong.json"), cfg).unwrap();
+    assert_fails(
+        &rtd(&["denoise", "--color", s(&a), "--guide", s(&a), "--model", s(&wrong), "-o", s(&out)]),
+        "input channels",
+    );
+    let mismatch = d.join("mismatch.bpk");
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rtd-denoiser.bpk"), &mismatch).unwrap();
+    std::fs::write(
+        d.join("mismatch.json"),
+        r#"{"channels":[8,8,8],"bottleneck_blocks":2,"prong":5,"input_channels":16}"#,
+    )
+    .unwrap();
+    assert_fails(
+        &rtd(&["denoise", "--color", s(&a), "--guide", s(&a), "--model", s(&mismatch), "-o", s(&out)]),
+        "do not match",
+    );
+    // More than 16384 px on a side.
+    let wide = d.join("wide.png");
+    image::RgbImage::new(16385, 1).save(&wide).unwrap();
+    assert_fails(&rtd(&["denoise", "--color", s(&wide), "--guide", s(&wide), "-o", s(&out)]), "16384");
+    assert!(!out.exists(), "no output may be written");
+    assert!(std::fs::read_dir(d).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".tmp")));
+}
