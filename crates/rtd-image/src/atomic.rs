@@ -29,6 +29,12 @@ where
         write(&mut buffered)?;
         buffered.flush().map_err(|e| ImageError::io(path, e))?;
     }
+    // Temporary files are created private (0600); a finished output gets the usual 0644.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| ImageError::io(path, e))?;
+    }
     tmp.persist(path).map_err(|e| ImageError::io(path, e.error))?;
     Ok(())
 }
