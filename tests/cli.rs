@@ -1,26 +1,10 @@
 //! The `rtd` binary end to end: outputs, reports and every bad-input case.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn rtd(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rtd")).args(args).output().expect("run rtd")
-}
-
-fn cornell() -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf").display().to_string()
-}
-
-/// Asserts a clean failure: non-zero exit, one stderr line mentioning `needle`, no panic.
-fn assert_fails(out: &Output, needle: &str) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, got success; stderr: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
-    assert!(lines[0].starts_with("rtd: error: "), "{err}");
-    assert!(err.contains(needle), "error should mention '{needle}': {err}");
-}
+use common::cli::{assert_fails, cornell_path, rtd};
+use std::process::Command;
 
 fn files_in(dir: &Path) -> Vec<PathBuf> {
     std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect()
@@ -33,7 +17,7 @@ fn renders_exr_with_all_layers_and_a_report() {
     let report = dir.path().join("r.json");
     let o = rtd(&[
         "render",
-        &cornell(),
+        &cornell_path(),
         "-o",
         out.to_str().unwrap(),
         "--spp",
@@ -82,7 +66,7 @@ fn same_command_same_bytes() {
         let p = dir.path().join(name);
         let o = rtd(&[
             "render",
-            &cornell(),
+            &cornell_path(),
             "-o",
             p.to_str().unwrap(),
             "--spp",
@@ -108,7 +92,7 @@ fn png_jpeg_and_time_budget() {
         [("a.png", vec!["--tonemap", "aces", "--exposure", "-1"]), ("b.jpg", vec![]), ("c.jpeg", vec!["--time", "0.2"])]
     {
         let p = dir.path().join(name);
-        let c = cornell();
+        let c = cornell_path();
         let mut args = vec!["render", &c, "-o", p.to_str().unwrap(), "--width", "16", "--height", "16", "-q"];
         args.extend(extra.iter());
         let o = rtd(&args);
@@ -122,7 +106,7 @@ fn bad_arguments_fail_cleanly() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
     let o = out.to_str().unwrap();
-    let c = cornell();
+    let c = cornell_path();
     assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "0"]), "spp");
     assert_fails(&rtd(&["render", &c, "-o", o, "--width", "0"]), "width");
     assert_fails(&rtd(&["render", &c, "-o", o, "--height", "100000"]), "height");
@@ -205,7 +189,7 @@ fn interrupt_keeps_finished_passes() {
     let child = Command::new(env!("CARGO_BIN_EXE_rtd"))
         .args([
             "render",
-            &cornell(),
+            &cornell_path(),
             "-o",
             out.to_str().unwrap(),
             "--spp",
@@ -238,7 +222,7 @@ fn guide_writes_all_layers_png_and_report() {
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("g.exr");
     let report = dir.path().join("g.json");
-    let c = cornell();
+    let c = cornell_path();
     let o = rtd(&[
         "guide",
         &c,
@@ -277,7 +261,7 @@ fn render_with_aov_adds_the_guide_layers() {
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("r.exr");
     let report = dir.path().join("r.json");
-    let c = cornell();
+    let c = cornell_path();
     let o = rtd(&[
         "render",
         &c,

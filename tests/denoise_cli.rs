@@ -1,24 +1,9 @@
 //! `rtd denoise` and `rtd render --denoise` end to end, including every bad-input case.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn rtd(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rtd")).args(args).output().expect("run rtd")
-}
-
-fn cornell() -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf").display().to_string()
-}
-
-fn assert_fails(out: &Output, needle: &str) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure; stderr: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
-    assert!(err.contains(needle), "error should mention '{needle}': {err}");
-}
+use common::cli::{assert_fails, cornell_path, rtd};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -29,7 +14,7 @@ fn noisy_exr(dir: &Path, w: u32, h: u32) -> PathBuf {
     let out = dir.join(format!("noisy{w}x{h}.exr"));
     let o = rtd(&[
         "render",
-        &cornell(),
+        &cornell_path(),
         "-o",
         s(&out),
         "--spp",
@@ -52,7 +37,7 @@ fn render_denoise_writes_denoised_noisy_and_guide_layers_and_reports_timings() {
     let report = dir.path().join("r.json");
     let o = rtd(&[
         "render",
-        &cornell(),
+        &cornell_path(),
         "-o",
         s(&exr),
         "--spp",
@@ -79,8 +64,20 @@ fn render_denoise_writes_denoised_noisy_and_guide_layers_and_reports_timings() {
     assert!(r["denoise_model"].as_str().unwrap().starts_with("builtin:"));
     // PNG output is the denoised image.
     let png = dir.path().join("d.png");
-    let o =
-        rtd(&["render", &cornell(), "-o", s(&png), "--spp", "4", "--width", "40", "--height", "32", "--denoise", "-q"]);
+    let o = rtd(&[
+        "render",
+        &cornell_path(),
+        "-o",
+        s(&png),
+        "--spp",
+        "4",
+        "--width",
+        "40",
+        "--height",
+        "32",
+        "--denoise",
+        "-q",
+    ]);
     assert!(o.status.success());
     assert!(png.exists());
 }

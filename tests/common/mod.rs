@@ -5,6 +5,8 @@ use glam::{Vec2, Vec3, Vec4};
 use rtd::render::{Film, PathTracer, RenderScene, RenderSettings};
 use rtd::scene::{Camera, Environment, Material, Scene, Triangle};
 
+pub mod cli;
+
 /// A material with the given base colour, roughness, metallic and transmission.
 pub fn material(color: Vec3, roughness: f32, metallic: f32, transmission: f32) -> Material {
     Material { base_color: color.extend(1.0), roughness, metallic, transmission, ..Material::default() }

@@ -1,0 +1,25 @@
+//! Helpers for tests that run the `rtd` binary.
+
+use std::process::{Command, Output};
+
+/// Runs the `rtd` binary with `args`.
+pub fn rtd(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtd")).args(args).output().expect("run rtd")
+}
+
+/// The bundled Cornell box's path as a string.
+pub fn cornell_path() -> String {
+    super::repo_path("scenes/cornell-box.gltf").display().to_string()
+}
+
+/// Asserts a clean failure: non-zero exit, one stderr line `rtd: error: …` mentioning `needle`,
+/// no panic.
+pub fn assert_fails(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, got success; stderr: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
+    assert!(lines[0].starts_with("rtd: error: "), "{err}");
+    assert!(err.contains(needle), "error should mention '{needle}': {err}");
+}
