@@ -167,30 +167,13 @@ pub fn reference(
     progress.note(&format!("rendering a {} spp reference (cached afterwards)", o.reference_spp));
     let a = render_spp(rs, cam, o, o.seed ^ 0xA5A5_0001, o.reference_spp / 2)?;
     let b = render_spp(rs, cam, o, o.seed ^ 0x5A5A_0002, o.reference_spp / 2)?;
-    let img = HdrImage::from_pixels(
-        o.width,
-        o.height,
-        a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x + *y) * 0.5).collect(),
-    );
-    // The mean of two halves has variance E[(a−b)²]/4.
-    let half_diff = HdrImage::from_pixels(
-        o.width,
-        o.height,
-        a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x - *y) * 0.5).collect(),
-    );
-    let zero_based: f64 = half_diff
-        .pixels
-        .iter()
-        .zip(&img.pixels)
-        .map(|(d, r)| (0..3).map(|c| (d[c] as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>())
-        .sum::<f64>()
-        / (3 * o.width * o.height) as f64;
+    let (img, noise_relmse) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
     std::fs::create_dir_all(cache_dir).map_err(|e| BenchError::io(cache_dir, e))?;
     let mut layers = Layers::new(o.width, o.height);
     layers.push_rgb("", &img);
-    layers.push("noise.Y", vec![zero_based as f32; (o.width * o.height) as usize]);
+    layers.push("noise.Y", vec![noise_relmse as f32; (o.width * o.height) as usize]);
     rtd_image::write_exr(&path, &layers)?;
-    Ok((img, format!("{} spp, rendered and cached {}", o.reference_spp, path.display()), Some(zero_based)))
+    Ok((img, format!("{} spp, rendered and cached {}", o.reference_spp, path.display()), Some(noise_relmse)))
 }
 
 /// Runs the whole comparison on `scene` (its first camera).

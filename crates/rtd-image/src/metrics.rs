@@ -143,6 +143,27 @@ pub fn snr_db(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
     }
 }
 
+/// Combines two independent, equally sampled renders `a` and `b` of one view into their mean
+/// and an estimate of the relMSE (ε = 0.01) still left in that mean: the mean of two halves has
+/// per-pixel variance E[(a−b)²]/4.
+pub fn mean_of_halves_with_noise(a: &HdrImage, b: &HdrImage) -> (HdrImage, f64) {
+    let mean = HdrImage::from_pixels(
+        a.width,
+        a.height,
+        a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x + *y) * 0.5).collect(),
+    );
+    let sum: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .zip(&mean.pixels)
+        .map(|((x, y), r)| {
+            (0..3).map(|c| ((x[c] - y[c]) as f64 * 0.5).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>()
+        })
+        .sum();
+    (mean, sum / (3 * a.pixels.len()).max(1) as f64)
+}
+
 /// Every metric at once.
 pub fn metrics(test: &HdrImage, reference: &HdrImage, crop: u32) -> Metrics {
     Metrics {
@@ -194,6 +215,15 @@ mod tests {
         assert!((snr_db(&t, &r, 0) - 20.0).abs() < 1e-3);
         let s = ssim(&t, &r, 0);
         assert!(s < 0.99 && s > 0.0, "{s}");
+    }
+
+    #[test]
+    fn the_noise_of_a_mean_of_halves_is_a_quarter_of_their_squared_difference() {
+        let a = image(4, 4, |_, _| Vec3::splat(1.2));
+        let b = image(4, 4, |_, _| Vec3::splat(0.8));
+        let (mean, noise) = mean_of_halves_with_noise(&a, &b);
+        assert!(mean.pixels.iter().all(|p| (*p - Vec3::ONE).abs().max_element() < 1e-6));
+        assert!((noise - 0.04 / 1.01).abs() < 1e-6, "{noise}");
     }
 
     #[test]

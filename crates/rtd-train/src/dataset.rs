@@ -244,20 +244,8 @@ pub fn generate_dataset(dir: &Path, options: &DatasetOptions, progress: &dyn Pro
                     )?);
                 }
                 let (a, b) = mean_of_halves(&halves);
-                // Var(mean of all) = E[(a−b)²]/4 when a, b are the means of the two halves.
-                let diff = HdrImage::from_pixels(
-                    size,
-                    size,
-                    a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x - *y) * 0.5).collect(),
-                );
-                let both = average(&a, &b);
-                reference_relmse = diff
-                    .pixels
-                    .iter()
-                    .zip(&both.pixels)
-                    .map(|(d, r)| (0..3).map(|c| (d[c] as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>())
-                    .sum::<f64>()
-                    / (3 * size * size) as f64;
+                let (both, noise) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
+                reference_relmse = noise;
                 round += 1;
                 if reference_relmse <= options.reference_relmse || round >= 2 {
                     layers.push_rgb("reference", &both);
@@ -296,10 +284,6 @@ fn mean_of_halves(halves: &[HdrImage]) -> (HdrImage, HdrImage) {
         out
     };
     (pick(0), pick(1))
-}
-
-fn average(a: &HdrImage, b: &HdrImage) -> HdrImage {
-    HdrImage::from_pixels(a.width, a.height, a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x + *y) * 0.5).collect())
 }
 
 /// The path of a view's EXR.
