@@ -30,7 +30,7 @@ fn denoise(c: &mut Criterion) {
     tracer.render(&mut film, 8).unwrap();
     let color = film.beauty();
     let g = GuidePass::render(&scene.scene, &scene.bvh, &cam, &GuideSettings::new(n, n)).unwrap();
-    let input = DenoiseInput::new(&color, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth);
+    let input = DenoiseInput::with_guide_pass(&color, &g);
     let mut group = c.benchmark_group(format!("denoise_{n}x{n}"));
     group.sample_size(10).throughput(Throughput::Elements((n * n) as u64));
     let fast = Denoiser::builtin().unwrap();

@@ -25,7 +25,7 @@ fn cornell_inputs(w: u32, h: u32) -> (HdrImage, rtd::guide::GuidePass) {
 }
 
 fn full_input<'a>(color: &'a HdrImage, g: &'a rtd::guide::GuidePass) -> DenoiseInput<'a> {
-    DenoiseInput::new(color, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth)
+    DenoiseInput::with_guide_pass(color, g)
 }
 
 #[test]

@@ -202,9 +202,7 @@ pub fn run_etrt(
     let noisy = film.beauty();
     let guide = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(o.width, o.height))?;
     let t = Instant::now();
-    let input = DenoiseInput::new(&noisy, &guide.guide)
-        .albedo_normal(&guide.albedo, &guide.normal)
-        .ao_depth(&guide.ao, &guide.depth);
+    let input = DenoiseInput::with_guide_pass(&noisy, &guide);
     let denoised = denoiser.denoise(&input)?;
     let denoise_s = t.elapsed().as_secs_f64();
     let pipeline_s = render_s + guide.seconds + denoise_s;

@@ -79,9 +79,7 @@ pub fn run_speed(
         guide_t.push(g.seconds / mp);
         let color = film.beauty();
         let t = Instant::now();
-        denoiser.denoise(
-            &DenoiseInput::new(&color, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth),
-        )?;
+        denoiser.denoise(&DenoiseInput::with_guide_pass(&color, &g))?;
         den_t.push(t.elapsed().as_secs_f64() / mp);
         progress.inc(1);
         if progress.cancelled() {

@@ -57,9 +57,7 @@ pub fn spp_sweep(
         let stats = tracer.render(&mut film, spp)?;
         let noisy = film.beauty();
         let t = Instant::now();
-        let input = DenoiseInput::new(&noisy, &guide.guide)
-            .albedo_normal(&guide.albedo, &guide.normal)
-            .ao_depth(&guide.ao, &guide.depth);
+        let input = DenoiseInput::with_guide_pass(&noisy, &guide);
         let denoised = denoiser.denoise(&input)?;
         let denoise_s = t.elapsed().as_secs_f64();
         out.push(SweepPoint {

@@ -27,6 +27,11 @@ impl<'a> DenoiseInput<'a> {
     pub fn new(color: &'a HdrImage, guide: &'a HdrImage) -> Self {
         DenoiseInput { color, guide, albedo_normal: None, ao_depth: None }
     }
+    /// Colour plus every layer of rtd's own guide pass (guide RGB, albedo, normal, AO, depth).
+    pub fn with_guide_pass(color: &'a HdrImage, pass: &'a rtd_guide::GuidePass) -> Self {
+        DenoiseInput::new(color, &pass.guide).albedo_normal(&pass.albedo, &pass.normal).ao_depth(&pass.ao, &pass.depth)
+    }
+
     /// Adds albedo and normal.
     pub fn albedo_normal(mut self, albedo: &'a HdrImage, normal: &'a HdrImage) -> Self {
         self.albedo_normal = Some((albedo, normal));

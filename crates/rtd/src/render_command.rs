@@ -221,8 +221,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         (Some(model), Some(g)) => {
             let t = Instant::now();
             let beauty = film.beauty();
-            let input =
-                DenoiseInput::new(&beauty, &g.guide).albedo_normal(&g.albedo, &g.normal).ao_depth(&g.ao, &g.depth);
+            let input = DenoiseInput::with_guide_pass(&beauty, g);
             let out = model.denoise(&input)?;
             denoise_s = Some(t.elapsed().as_secs_f64());
             Some(out)
