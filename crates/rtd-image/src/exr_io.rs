@@ -3,7 +3,7 @@ use std::path::Path;
 
 use exr::prelude::{
     read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    SmallVec, WritableImage,
+    LineOrder, SmallVec, WritableImage,
 };
 
 use crate::{write_atomic, HdrImage, ImageError, MAX_DIMENSION};
@@ -99,7 +99,10 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
             AnyChannel::new(name.as_str(), FlatSamples::F32(clean))
         })
         .collect();
-    let layer = Layer::new(size, LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
+    // Blocks in increasing order: with the default (unspecified) order, blocks compressed in
+    // parallel land in completion order and the same image gives different bytes.
+    let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+    let layer = Layer::new(size, LayerAttributes::default(), encoding, AnyChannels::sort(channels));
     let image = Image::from_layer(layer);
     // exr needs a seekable writer: encode to memory, then write the bytes atomically.
     let mut encoded = std::io::Cursor::new(Vec::new());
@@ -154,6 +157,28 @@ mod tests {
         assert_eq!(back.rgb("").unwrap(), img);
         assert_eq!(back.xyz("normal").unwrap(), img);
         assert_eq!(back.get("depth.Z").unwrap(), &[0.0, 1.0, 2.0, 3.0, 0.0, 5.0]);
+    }
+
+    #[test]
+    fn the_same_image_gives_identical_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        // Many blocks, so that parallel compression could reorder them.
+        let (w, h) = (96u32, 512u32);
+        let img = HdrImage::from_pixels(
+            w,
+            h,
+            (0..w * h).map(|i| Vec3::new((i % 97) as f32, (i * 31 % 1013) as f32 * 1e-3, 0.5)).collect(),
+        );
+        let mut layers = Layers::new(w, h);
+        layers.push_rgb("", &img);
+        let bytes: Vec<Vec<u8>> = (0..4)
+            .map(|k| {
+                let path = dir.path().join(format!("{k}.exr"));
+                write_exr(&path, &layers).unwrap();
+                std::fs::read(path).unwrap()
+            })
+            .collect();
+        assert!(bytes.iter().all(|b| *b == bytes[0]));
     }
 
     #[test]
