@@ -51,7 +51,11 @@ fn tiled_equals_untiled_and_the_fast_path_equals_burn() {
 fn the_same_input_gives_identical_bytes() {
     let (color, g) = cornell_inputs(64, 48);
     let a = model().denoise(&full_input(&color, &g)).unwrap();
-    let b = model().denoise(&full_input(&color, &g)).unwrap();
+    // The same denoiser again, after another size has left other values in its kept buffers.
+    let m = model();
+    let (other, og) = cornell_inputs(90, 30);
+    m.denoise(&full_input(&other, &og)).unwrap();
+    let b = m.denoise(&full_input(&color, &g)).unwrap();
     assert_eq!(a.pixels, b.pixels);
 }
 
@@ -93,13 +97,12 @@ fn black_input_gives_black_output_and_constants_stay_constant() {
     for value in [0.05f32, 0.7, 30.0] {
         let c = HdrImage::from_pixels(w, h, vec![Vec3::splat(value); (w * h) as usize]);
         let out = m.denoise(&DenoiseInput::new(&c, &grey)).unwrap();
-        // Every output pixel sees the same (edge-replicated) neighbourhood: exactly uniform.
-        let first = out.pixels[0];
-        assert!(
-            out.pixels.iter().all(|p| (*p - first).abs().max_element() <= 1e-6 * value),
-            "output not uniform for {value}"
-        );
-        assert!(((first.x / value) - 1.0).abs() < 0.05, "constant {value} became {first:?}");
+        // The centre sees only the constant; edge pixels also see the zero padding beyond the
+        // replicated border, which may move them slightly but no further than 1%.
+        let centre = out.get(w / 2, h / 2);
+        let spread = out.pixels.iter().map(|p| (*p - centre).abs().max_element()).fold(0.0, f32::max) / value;
+        assert!(spread <= 0.01, "output of constant {value} varies by {spread} of it");
+        assert!(((centre.x / value) - 1.0).abs() < 0.05, "constant {value} became {centre:?}");
     }
 }
 

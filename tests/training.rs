@@ -40,6 +40,16 @@ fn datagen_resumes_without_redoing_views_and_splits_by_scene() {
     }
     // The generated glTF renders with the normal loader.
     assert!(rtd::scene::load_scene(&dir.path().join("scenes/scene0000.gltf")).is_ok());
+
+    // More scenes extend the dataset in place; any other changed option is refused.
+    let grown = DatasetOptions::default().scenes(4).views_per_scene(1).size(24).reference_spp(16).validation_every(3);
+    let extended = generate_dataset(dir.path(), &grown, &Quiet).unwrap();
+    assert_eq!(extended.views.len() + extended.rejected.len(), 4);
+    assert_eq!(stamp(&again), before, "extending must not render the old views again");
+    assert_eq!(Manifest::load(dir.path()).unwrap().options.scenes, 4);
+    let bigger = grown.clone().size(32);
+    let err = generate_dataset(dir.path(), &bigger, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("manifest.json") && err.contains("other options"), "{err}");
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! HDR input encoding: sanitising (NaN → 0, Inf and negatives clamped), auto-exposure from the
 //! log-average luminance, a log transfer for colour, and assembly of the network's input planes.
 
+use rayon::prelude::*;
 use rtd_image::HdrImage;
 
 use crate::{DenoiseError, INPUT_CHANNELS};
@@ -120,8 +121,6 @@ pub fn decode_color(y: f32, exposure: f32) -> f32 {
 pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, DenoiseError> {
     let (w, h) = input.size()?;
     let n = (w * h) as usize;
-    let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
-    let mut put = |c: usize, i: usize, v: f32| planes[c * n + i] = v;
     let depth_scale = input.ao_depth.map(|(_, d)| {
         let hits: Vec<f32> = d.iter().copied().filter(|v| v.is_finite() && *v > 0.0).collect();
         if hits.is_empty() {
@@ -130,27 +129,24 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, De
             hits.len() as f32 / hits.iter().sum::<f32>()
         }
     });
-    for i in 0..n {
-        let c = input.color.pixels[i];
-        let g = input.guide.pixels[i];
-        for k in 0..3 {
-            put(k, i, encode_color(c[k], exposure));
-            put(3 + k, i, clean(g[k], 0.0, 1.0));
-        }
-        if let Some((a, nrm)) = input.albedo_normal {
-            for k in 0..3 {
-                put(6 + k, i, clean(a.pixels[i][k], 0.0, 1.0));
-                put(9 + k, i, clean(nrm.pixels[i][k], -1.0, 1.0));
+    let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
+    // One plane per task; absent inputs leave their planes (and flags) at 0.
+    planes.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
+        let (k, color, guide) = (c % 3, &input.color.pixels, &input.guide.pixels);
+        match (c, input.albedo_normal, input.ao_depth.zip(depth_scale)) {
+            (0..=2, _, _) => plane.iter_mut().zip(color).for_each(|(v, p)| *v = encode_color(p[k], exposure)),
+            (3..=5, _, _) => plane.iter_mut().zip(guide).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
+            (6..=8, Some((a, _)), _) => plane.iter_mut().zip(&a.pixels).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
+            (9..=11, Some((_, nrm)), _) => {
+                plane.iter_mut().zip(&nrm.pixels).for_each(|(v, p)| *v = clean(p[k], -1.0, 1.0))
             }
-            put(14, i, 1.0);
-        }
-        if let (Some((ao, d)), Some(s)) = (input.ao_depth, depth_scale) {
-            put(12, i, clean(ao[i], 0.0, 1.0));
+            (12, _, Some(((ao, _), _))) => plane.iter_mut().zip(ao).for_each(|(v, a)| *v = clean(*a, 0.0, 1.0)),
             // Depth relative to the mean hit distance, so the scene's scale does not matter.
-            put(13, i, clean(d[i] * s, 0.0, 8.0));
-            put(15, i, 1.0);
+            (13, _, Some(((_, d), s))) => plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0)),
+            (14, Some(_), _) | (15, _, Some(_)) => plane.fill(1.0),
+            _ => {}
         }
-    }
+    });
     Ok(planes)
 }
 
@@ -158,6 +154,7 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, De
 mod tests {
     use super::*;
     use glam::Vec3;
+    use rayon::prelude::*;
 
     #[test]
     fn transfer_round_trips_and_sanitises() {

@@ -21,8 +21,37 @@ pub struct Map {
 }
 
 impl Map {
+    #[cfg(test)]
     fn zeros(w: usize, h: usize, c: usize) -> Self {
         Map { w, h, c, data: vec![0.0; w * h * c] }
+    }
+}
+
+/// Feature buffers recycled between layers and tiles, so a forward pass maps fresh memory
+/// (and takes its page faults) only for its first few layers.
+#[derive(Default)]
+pub struct Scratch {
+    free: Vec<Vec<f32>>,
+}
+
+impl Scratch {
+    /// A w×h×c map whose contents are unspecified: every caller overwrites all of it.
+    fn map(&mut self, w: usize, h: usize, c: usize) -> Map {
+        let len = w * h * c;
+        // The smallest free buffer that fits, else the largest (it will grow).
+        let pick = (0..self.free.len())
+            .filter(|&i| self.free[i].capacity() >= len)
+            .min_by_key(|&i| self.free[i].capacity())
+            .or_else(|| (0..self.free.len()).max_by_key(|&i| self.free[i].capacity()));
+        let mut data = pick.map(|i| self.free.swap_remove(i)).unwrap_or_default();
+        data.resize(len, 0.0);
+        data.truncate(len);
+        Map { w, h, c, data }
+    }
+
+    /// Returns a map's buffer to the pool.
+    pub fn recycle(&mut self, m: Map) {
+        self.free.push(m.data);
     }
 }
 
@@ -74,6 +103,21 @@ impl Conv {
             None => vec![0.0; cout],
         };
         Conv { cin, cout, kh, kw, dil: conv.dilation[0], weights, bias }
+    }
+
+    /// Two 1×1 convolutions side by side: [a_in, b_in] → [a(a_in), b(b_in)].
+    fn block_diagonal(a: &Conv, b: &Conv) -> Self {
+        assert!(a.kh == 1 && a.kw == 1 && b.kh == 1 && b.kw == 1);
+        let (cin, cout) = (a.cin + b.cin, a.cout + b.cout);
+        let mut weights = vec![0.0; cin * cout];
+        for ci in 0..a.cin {
+            weights[ci * cout..ci * cout + a.cout].copy_from_slice(&a.weights[ci * a.cout..(ci + 1) * a.cout]);
+        }
+        for ci in 0..b.cin {
+            let row = (a.cin + ci) * cout + a.cout;
+            weights[row..row + b.cout].copy_from_slice(&b.weights[ci * b.cout..(ci + 1) * b.cout]);
+        }
+        Conv { cin, cout, kh: 1, kw: 1, dil: 1, weights, bias: [a.bias.clone(), b.bias.clone()].concat() }
     }
 
     /// Writes conv(x) (+ bias, optionally ReLU) into channels [offset, offset + cout) of `dst`,
@@ -154,26 +198,40 @@ impl Conv {
         });
     }
 
-    fn run(&self, x: &Map, relu: bool) -> Map {
-        let mut out = Map::zeros(x.w, x.h, self.cout);
+    fn run(&self, x: &Map, relu: bool, scratch: &mut Scratch) -> Map {
+        let mut out = scratch.map(x.w, x.h, self.cout);
         self.apply(x, &mut out, 0, relu);
         out
     }
 }
 
-/// 3×3 stride-1 max (or min) pooling over the valid neighbours.
-fn pool3(x: &Map, min: bool) -> Map {
-    let mut out = Map::zeros(x.w, x.h, x.c);
-    let c = x.c;
-    out.data.par_chunks_mut(x.w * c).enumerate().for_each(|(y, row)| {
-        for px in 0..x.w {
-            let o = &mut row[px * c..(px + 1) * c];
-            o.fill(if min { f32::INFINITY } else { f32::NEG_INFINITY });
-            for sy in y.saturating_sub(1)..(y + 2).min(x.h) {
-                for sx in px.saturating_sub(1)..(px + 2).min(x.w) {
-                    let s = &x.data[(sy * x.w + sx) * c..][..c];
-                    for (a, b) in o.iter_mut().zip(s) {
-                        *a = if min { a.min(*b) } else { a.max(*b) };
+/// 3×3 stride-1 max and min pooling over the valid neighbours, in one separable pass:
+/// channels [0, c) hold the max, [c, 2c) the min.
+fn pool3_max_min(x: &Map, scratch: &mut Scratch) -> Map {
+    let mut out = scratch.map(x.w, x.h, 2 * x.c);
+    let (w, c) = (x.w, x.c);
+    out.data.par_chunks_mut(w * 2 * c).enumerate().for_each(|(y, row)| {
+        // Vertical max/min over rows y−1..=y+1, then horizontal over x−1..=x+1.
+        let mut hi = x.data[y * w * c..(y + 1) * w * c].to_vec();
+        let mut lo = hi.clone();
+        for sy in [y.wrapping_sub(1), y + 1] {
+            if sy < x.h {
+                let src = &x.data[sy * w * c..(sy + 1) * w * c];
+                for ((a, b), v) in hi.iter_mut().zip(lo.iter_mut()).zip(src) {
+                    *a = a.max(*v);
+                    *b = b.min(*v);
+                }
+            }
+        }
+        for px in 0..w {
+            let (mx, mn) = row[px * 2 * c..(px + 1) * 2 * c].split_at_mut(c);
+            mx.copy_from_slice(&hi[px * c..(px + 1) * c]);
+            mn.copy_from_slice(&lo[px * c..(px + 1) * c]);
+            for sx in [px.wrapping_sub(1), px + 1] {
+                if sx < w {
+                    for k in 0..c {
+                        mx[k] = mx[k].max(hi[sx * c + k]);
+                        mn[k] = mn[k].min(lo[sx * c + k]);
                     }
                 }
             }
@@ -183,9 +241,9 @@ fn pool3(x: &Map, min: bool) -> Map {
 }
 
 /// 2×2 stride-2 max pooling (even sizes).
-fn downsample(x: &Map) -> Map {
+fn downsample(x: &Map, scratch: &mut Scratch) -> Map {
     let (w, h, c) = (x.w / 2, x.h / 2, x.c);
-    let mut out = Map::zeros(w, h, c);
+    let mut out = scratch.map(w, h, c);
     out.data.par_chunks_mut(w * c).enumerate().for_each(|(y, row)| {
         for px in 0..w {
             for ch in 0..c {
@@ -197,23 +255,18 @@ fn downsample(x: &Map) -> Map {
     out
 }
 
-/// Nearest 2× upsampling of `x` written into channels [0, x.c) of `dst` (twice the size).
-fn upsample_into(x: &Map, dst: &mut Map) {
+/// `dst += nearest 2× upsampling of x` (`dst` twice the size, same channels).
+fn add_upsampled(x: &Map, dst: &mut Map) {
     let c = x.c;
-    let dc = dst.c;
     let dw = dst.w;
-    dst.data.par_chunks_mut(dw * dc).enumerate().for_each(|(y, row)| {
+    dst.data.par_chunks_mut(dw * c).enumerate().for_each(|(y, row)| {
         for px in 0..dw {
             let s = &x.data[((y / 2) * x.w + px / 2) * c..][..c];
-            row[px * dc..px * dc + c].copy_from_slice(s);
+            for (d, v) in row[px * c..(px + 1) * c].iter_mut().zip(s) {
+                *d += v;
+            }
         }
     });
-}
-
-/// Copies `x` into channels [offset, offset + x.c) of `dst` (same size).
-fn copy_into(x: &Map, dst: &mut Map, offset: usize) {
-    let (c, dc) = (x.c, dst.c);
-    dst.data.par_chunks_mut(dc).zip(x.data.par_chunks(c)).for_each(|(d, s)| d[offset..offset + c].copy_from_slice(s));
 }
 
 struct FastBlock {
@@ -222,8 +275,8 @@ struct FastBlock {
     dilated: Conv,
     prong_h: Conv,
     prong_v: Conv,
-    max_proj: Conv,
-    min_proj: Conv,
+    /// max_proj and min_proj as one block-diagonal 1×1 conv over [max-pooled, min-pooled].
+    pool_proj: Conv,
     mix: Conv,
     residual: bool,
 }
@@ -236,31 +289,74 @@ impl FastBlock {
             dilated: Conv::from(&b.dilated),
             prong_h: Conv::from(&b.prong_h),
             prong_v: Conv::from(&b.prong_v),
-            max_proj: Conv::from(&b.max_proj),
-            min_proj: Conv::from(&b.min_proj),
+            pool_proj: Conv::block_diagonal(&Conv::from(&b.max_proj), &Conv::from(&b.min_proj)),
             mix: Conv::from(&b.mix),
             residual: b.residual,
         }
     }
 
-    fn forward(&self, x: &Map) -> Map {
+    fn forward(&self, x: &Map, scratch: &mut Scratch) -> Map {
         // Branches write ReLU'd outputs into their slice of the concatenation.
-        let mut cat = Map::zeros(x.w, x.h, self.mix.cin);
+        let mut cat = scratch.map(x.w, x.h, self.mix.cin);
         let mut off = 0;
         for conv in [&self.one, &self.three, &self.dilated] {
             conv.apply(x, &mut cat, off, true);
             off += conv.cout;
         }
-        let prong = self.prong_h.run(x, true);
+        let prong = self.prong_h.run(x, true, scratch);
         self.prong_v.apply(&prong, &mut cat, off, true);
+        scratch.recycle(prong);
         off += self.prong_v.cout;
-        self.max_proj.apply(&pool3(x, false), &mut cat, off, true);
-        off += self.max_proj.cout;
-        self.min_proj.apply(&pool3(x, true), &mut cat, off, true);
-        let mut y = self.mix.run(&cat, true);
+        let pooled = pool3_max_min(x, scratch);
+        self.pool_proj.apply(&pooled, &mut cat, off, true);
+        scratch.recycle(pooled);
+        let mut y = self.mix.run(&cat, true, scratch);
+        scratch.recycle(cat);
         if self.residual {
             y.data.par_iter_mut().zip(x.data.par_iter()).for_each(|(a, b)| *a += b);
         }
+        y
+    }
+}
+
+/// One decoder level for the fast path. The 1×1 fuse of [upsampled coarse, skip] is split by
+/// input: its coarse half commutes with nearest upsampling, so it runs at the coarse resolution
+/// (a quarter of the pixels) and is upsampled-added onto the skip half.
+struct FastDecoder {
+    fuse_coarse: Conv,
+    fuse_skip: Conv,
+    refine: Conv,
+}
+
+impl FastDecoder {
+    fn from(d: &crate::model::Decoder) -> Self {
+        let fuse = Conv::from(&d.fuse);
+        let coarse = fuse.cin - fuse.cout; // fuse: [c(l+1) + c(l)] → c(l)
+        let split = |rows: std::ops::Range<usize>, bias: bool| Conv {
+            cin: rows.len(),
+            cout: fuse.cout,
+            kh: 1,
+            kw: 1,
+            dil: 1,
+            weights: fuse.weights[rows.start * fuse.cout..rows.end * fuse.cout].to_vec(),
+            bias: if bias { fuse.bias.clone() } else { vec![0.0; fuse.cout] },
+        };
+        FastDecoder {
+            fuse_coarse: split(0..coarse, false),
+            fuse_skip: split(coarse..fuse.cin, true),
+            refine: Conv::from(&d.refine),
+        }
+    }
+
+    /// relu(refine(relu(fuse([up(coarse), skip])))).
+    fn forward(&self, coarse: &Map, skip: &Map, scratch: &mut Scratch) -> Map {
+        let low = self.fuse_coarse.run(coarse, false, scratch);
+        let mut fused = self.fuse_skip.run(skip, false, scratch);
+        add_upsampled(&low, &mut fused);
+        scratch.recycle(low);
+        fused.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        let y = self.refine.run(&fused, true, scratch);
+        scratch.recycle(fused);
         y
     }
 }
@@ -270,7 +366,7 @@ pub struct FastNet {
     stem: Conv,
     encoders: Vec<FastBlock>,
     bottleneck: Vec<FastBlock>,
-    decoders: Vec<(Conv, Conv)>,
+    decoders: Vec<FastDecoder>,
     output: Conv,
 }
 
@@ -281,35 +377,38 @@ impl FastNet {
             stem: Conv::from(&net.stem),
             encoders: net.encoders.iter().map(FastBlock::from).collect(),
             bottleneck: net.bottleneck.iter().map(FastBlock::from).collect(),
-            decoders: net.decoders.iter().map(|d| (Conv::from(&d.fuse), Conv::from(&d.refine))).collect(),
+            decoders: net.decoders.iter().map(FastDecoder::from).collect(),
             output: Conv::from(&net.output),
         }
     }
 
     /// The same function as [`DenoiserNet::forward`] for one image: `x` is the encoded input
-    /// (HWC); returns the 3-channel encoded colour (HWC).
-    pub fn forward(&self, x: &Map) -> Map {
-        let mut skips = vec![];
-        let mut y = self.stem.run(x, true);
+    /// (HWC); returns the 3-channel encoded colour (HWC). Buffers come from and go back to
+    /// `scratch`.
+    pub fn forward(&self, x: &Map, scratch: &mut Scratch) -> Map {
+        let mut skips: Vec<Map> = vec![];
+        let mut y = self.stem.run(x, true, scratch);
         for (l, enc) in self.encoders.iter().enumerate() {
             if l > 0 {
-                y = downsample(&y);
+                let down = downsample(&y, scratch);
+                skips.push(std::mem::replace(&mut y, down));
             }
-            y = enc.forward(&y);
-            skips.push(y.clone());
+            let next = enc.forward(&y, scratch);
+            scratch.recycle(std::mem::replace(&mut y, next));
         }
         for b in &self.bottleneck {
-            y = b.forward(&y);
+            let next = b.forward(&y, scratch);
+            scratch.recycle(std::mem::replace(&mut y, next));
         }
-        skips.pop();
         for dec in self.decoders.iter().rev() {
             let skip = skips.pop().expect("one skip per decoder level");
-            let mut cat = Map::zeros(skip.w, skip.h, y.c + skip.c);
-            upsample_into(&y, &mut cat);
-            copy_into(&skip, &mut cat, y.c);
-            y = dec.1.run(&dec.0.run(&cat, true), true);
+            let next = dec.forward(&y, &skip, scratch);
+            scratch.recycle(std::mem::replace(&mut y, next));
+            scratch.recycle(skip);
         }
-        self.output.run(&y, false)
+        let out = self.output.run(&y, false, scratch);
+        scratch.recycle(y);
+        out
     }
 }
 
@@ -338,7 +437,7 @@ mod tests {
                     hwc.data[p * c + ch] = chw[ch * w * h + p];
                 }
             }
-            let fast = FastNet::from_net(&net).forward(&hwc);
+            let fast = FastNet::from_net(&net).forward(&hwc, &mut Scratch::default());
             let mut worst = 0.0f32;
             for ch in 0..3 {
                 for p in 0..w * h {

@@ -7,10 +7,11 @@ use burn::module::Module;
 use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
 use glam::Vec3;
+use rayon::prelude::*;
 use rtd_image::HdrImage;
 
 use crate::encode::{auto_exposure, decode_color, encode_planes, DenoiseInput};
-use crate::fast::{FastNet, Map};
+use crate::fast::{FastNet, Map, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::{DenoiseError, INPUT_CHANNELS};
 
@@ -21,6 +22,11 @@ const BUILTIN_WEIGHTS: &[u8] = include_bytes!("../../../models/rtd-denoiser.bpk"
 /// Largest accepted image side.
 pub const MAX_SIDE: u32 = 16384;
 
+/// How far past the image edges the edge pixels are repeated (rounded up to the network's
+/// alignment, and at most the tile margin); the network's own zero padding lies beyond that.
+/// Smaller than the receptive radius, which saves about a fifth of the work at 512².
+pub const EDGE_PAD: usize = 16;
+
 /// A trained denoiser ready to run.
 pub struct Denoiser {
     net: DenoiserNet,
@@ -30,6 +36,8 @@ pub struct Denoiser {
     device: Device,
     name: String,
     tile: usize,
+    /// Feature buffers kept between calls (taken with `try_lock`; a concurrent call uses its own).
+    scratch: std::sync::Mutex<Scratch>,
 }
 
 impl Denoiser {
@@ -81,7 +89,16 @@ impl Denoiser {
     /// Wraps an already-built network (training's validation uses this).
     pub fn from_net(net: DenoiserNet, config: DenoiserConfig, device: Device, name: &str) -> Self {
         let fast = FastNet::from_net(&net);
-        Denoiser { net, fast, use_burn: false, config, device, name: name.to_string(), tile: 512 }
+        Denoiser {
+            net,
+            fast,
+            use_burn: false,
+            config,
+            device,
+            name: name.to_string(),
+            tile: 512,
+            scratch: Default::default(),
+        }
     }
 
     /// Sets the tile size (rounded up to the network's alignment).
@@ -136,70 +153,104 @@ impl Denoiser {
         Ok(HdrImage::from_pixels(w, h, pixels))
     }
 
+    /// Replicated pixels beyond each image edge: [`EDGE_PAD`] rounded up to the alignment,
+    /// at most the margin.
+    pub fn edge_pad(&self) -> usize {
+        let a = self.config.alignment();
+        EDGE_PAD.div_ceil(a).min(self.margin().div_ceil(a)) * a
+    }
+
     /// Runs the network over encoded input planes (C × H × W), tile by tile, and returns the
-    /// encoded output planes (3 × H × W). Pixels outside the image repeat the nearest edge pixel.
+    /// encoded output planes (3 × H × W).
+    ///
+    /// The function computed is the network applied to the image extended by
+    /// [`Denoiser::edge_pad`] repeated edge pixels on each side (and to a multiple of the
+    /// alignment). Each tile reads its neighbours' pixels out to the receptive radius, clipped to
+    /// that extended image, and its windows keep the extended image's alignment, so tiled and
+    /// untiled runs compute the same values.
     pub fn run_planes(&self, planes: &[f32], w: usize, h: usize) -> Vec<f32> {
         let a = self.config.alignment();
-        let m = self.margin();
+        let (m, p) = (self.margin() as i64, self.edge_pad() as i64);
         let (wp, hp) = (w.div_ceil(a) * a, h.div_ceil(a) * a);
         let mut out = vec![0.0f32; 3 * w * h];
-        let mut ty = 0;
-        while ty < hp {
+        let mut own = Scratch::default();
+        let mut kept = self.scratch.try_lock();
+        let scratch = match kept.as_deref_mut() {
+            Ok(s) => s,
+            Err(_) => &mut own,
+        };
+        for ty in (0..hp).step_by(self.tile) {
             let th = self.tile.min(hp - ty);
-            let mut tx = 0;
-            while tx < wp {
+            for tx in (0..wp).step_by(self.tile) {
                 let tw = self.tile.min(wp - tx);
-                let tile =
-                    self.run_tile(planes, w, h, tx as i64 - m as i64, ty as i64 - m as i64, tw + 2 * m, th + 2 * m);
+                // The tile plus its margin, clipped to the extended image.
+                let (x0, y0) = ((tx as i64 - m).max(-p), (ty as i64 - m).max(-p));
+                let (x1, y1) = (((tx + tw) as i64 + m).min(wp as i64 + p), ((ty + th) as i64 + m).min(hp as i64 + p));
+                let (iw, ih) = ((x1 - x0) as usize, (y1 - y0) as usize);
+                let tile = self.run_tile(planes, w, h, x0, y0, iw, ih, scratch);
                 // Keep the tile's interior.
-                let (iw, ih) = (tw + 2 * m, th + 2 * m);
+                let (ox, oy) = ((tx as i64 - x0) as usize, (ty as i64 - y0) as usize);
                 for c in 0..3 {
                     for y in ty..(ty + th).min(h) {
-                        for x in tx..(tx + tw).min(w) {
-                            out[c * w * h + y * w + x] = tile[c * iw * ih + (y - ty + m) * iw + (x - tx + m)];
-                        }
+                        let src = &tile[c * iw * ih + (y - ty + oy) * iw + ox..][..(tx + tw).min(w) - tx];
+                        out[c * w * h + y * w + tx..][..src.len()].copy_from_slice(src);
                     }
                 }
-                tx += tw;
             }
-            ty += th;
         }
         out
     }
 
-    /// One tile of `tw`×`th` pixels whose top-left is (x0, y0) in image coordinates.
+    /// One window of `tw`×`th` pixels whose top-left is (x0, y0) in image coordinates (pixels
+    /// outside the image repeat the nearest edge pixel). Returns 3 × th × tw encoded colour.
     #[allow(clippy::too_many_arguments)]
-    fn run_tile(&self, planes: &[f32], w: usize, h: usize, x0: i64, y0: i64, tw: usize, th: usize) -> Vec<f32> {
-        let mut data = vec![0.0f32; INPUT_CHANNELS * tw * th];
-        for c in 0..INPUT_CHANNELS {
-            for y in 0..th {
-                let sy = (y0 + y as i64).clamp(0, h as i64 - 1) as usize;
-                for x in 0..tw {
-                    let sx = (x0 + x as i64).clamp(0, w as i64 - 1) as usize;
-                    data[c * tw * th + y * tw + x] = planes[c * w * h + sy * w + sx];
-                }
-            }
-        }
+    fn run_tile(
+        &self,
+        planes: &[f32],
+        w: usize,
+        h: usize,
+        x0: i64,
+        y0: i64,
+        tw: usize,
+        th: usize,
+        scratch: &mut Scratch,
+    ) -> Vec<f32> {
+        let src = |x: usize, y: usize| {
+            let sx = (x0 + x as i64).clamp(0, w as i64 - 1) as usize;
+            let sy = (y0 + y as i64).clamp(0, h as i64 - 1) as usize;
+            sy * w + sx
+        };
+        let n = tw * th;
         if self.use_burn {
+            let mut data = vec![0.0f32; INPUT_CHANNELS * n];
+            data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
+                let (c, y) = (row / th, row % th);
+                for (x, d) in dst.iter_mut().enumerate() {
+                    *d = planes[c * w * h + src(x, y)];
+                }
+            });
             let input = Tensor::<4>::from_data(TensorData::new(data, [1, INPUT_CHANNELS, th, tw]), &self.device);
             let y = self.net.forward(input); // [1, 3, th, tw]
             return y.into_data().try_into_vec::<f32>().expect("the network outputs f32");
         }
-        // Channel-major to HWC for the fast path, and back.
-        let n = tw * th;
+        // The fast path works on HWC maps.
         let mut hwc = vec![0.0f32; n * INPUT_CHANNELS];
-        for c in 0..INPUT_CHANNELS {
-            for p in 0..n {
-                hwc[p * INPUT_CHANNELS + c] = data[c * n + p];
+        hwc.par_chunks_mut(tw * INPUT_CHANNELS).enumerate().for_each(|(y, dst)| {
+            for (x, px) in dst.chunks_mut(INPUT_CHANNELS).enumerate() {
+                let i = src(x, y);
+                for (c, d) in px.iter_mut().enumerate() {
+                    *d = planes[c * w * h + i];
+                }
             }
-        }
-        let y = self.fast.forward(&Map { w: tw, h: th, c: INPUT_CHANNELS, data: hwc });
+        });
+        let y = self.fast.forward(&Map { w: tw, h: th, c: INPUT_CHANNELS, data: hwc }, scratch);
         let mut out = vec![0.0f32; 3 * n];
-        for p in 0..n {
-            for c in 0..3 {
-                out[c * n + p] = y.data[p * 3 + c];
+        out.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
+            for (p, v) in plane.iter_mut().enumerate() {
+                *v = y.data[p * 3 + c];
             }
-        }
+        });
+        scratch.recycle(y);
         out
     }
 }

@@ -179,8 +179,16 @@ pub fn generate_dataset(dir: &Path, options: &DatasetOptions, progress: &dyn Pro
     std::fs::create_dir_all(dir.join("scenes")).map_err(|e| TrainError::io(dir, e))?;
     let mut manifest = match Manifest::load(dir) {
         Ok(m) if m.options == *options => m,
+        // Same options but more scenes: extend. Scene k is the same whatever the count.
+        Ok(mut m) if m.options.scenes < options.scenes && m.options == options.clone().scenes(m.options.scenes) => {
+            m.options.scenes = options.scenes;
+            m
+        }
         Ok(_) => {
-            return Err(TrainError::msg(&dir.join("manifest.json"), "was made with other options; use a new directory"))
+            return Err(TrainError::msg(
+                &dir.join("manifest.json"),
+                "was made with other options (only --scenes may grow); use a new directory",
+            ))
         }
         Err(_) => Manifest { options: options.clone(), noisy_spp: NOISY_SPP.to_vec(), views: vec![], rejected: vec![] },
     };
