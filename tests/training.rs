@@ -110,3 +110,32 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     };
     assert!(run("a") == run("c"), "resumed weights differ");
 }
+
+#[test]
+fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    tiny_dataset(&data);
+    let cfg = rtd::denoise::DenoiserConfig::new(vec![8, 8]).with_bottleneck_blocks(1);
+    let options = TrainOptions::default().config(cfg.clone()).batch(2, 16).steps(4).epoch_steps(4);
+    train(&data, &dir.path().join("a"), &options, false, &Quiet).unwrap();
+    let a_model = dir.path().join("a/model.bpk");
+    // One step at a negligible rate from a's weights: the result computes what a does, and
+    // differs from a fresh network.
+    let tuned = options.clone().steps(1).learning_rate(1e-12).init(Some(a_model.clone()));
+    train(&data, &dir.path().join("b"), &tuned, false, &Quiet).unwrap();
+    let fresh = options.clone().steps(1).learning_rate(1e-12).seed(9);
+    train(&data, &dir.path().join("c"), &fresh, false, &Quiet).unwrap();
+    let run = |d: &str| {
+        let m = rtd::denoise::Denoiser::load(&dir.path().join(d).join("model.bpk")).unwrap();
+        let planes: Vec<f32> = (0..rtd::denoise::INPUT_CHANNELS * 64).map(|i| (i % 7) as f32 * 0.1).collect();
+        m.run_planes(&planes, 8, 8)
+    };
+    let diff = |x: &[f32], y: &[f32]| x.iter().zip(y).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max);
+    assert!(diff(&run("a"), &run("b")) < 1e-4, "fine-tuning did not start from the given weights");
+    assert!(diff(&run("a"), &run("c")) > 1e-3, "a fresh network should differ");
+    // A model of another shape is refused, naming its config file.
+    let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
+    let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("model.json") && err.contains("another network"), "{err}");
+}

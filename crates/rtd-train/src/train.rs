@@ -35,6 +35,10 @@ pub struct TrainOptions {
     pub epoch_steps: u64,
     /// Validation sample count.
     pub validation_spp: u32,
+    /// Start from these weights (a `model.bpk` whose `.json` config equals `config`) instead
+    /// of random ones: fine-tuning. The optimiser and schedule start afresh.
+    #[serde(default)]
+    pub init: Option<PathBuf>,
 }
 
 impl Default for TrainOptions {
@@ -48,6 +52,7 @@ impl Default for TrainOptions {
             learning_rate: 2e-3,
             epoch_steps: 200,
             validation_spp: 8,
+            init: None,
         }
     }
 }
@@ -72,6 +77,16 @@ impl TrainOptions {
     pub fn batch(mut self, batch: usize, crop: usize) -> Self {
         self.batch = batch;
         self.crop = crop;
+        self
+    }
+    /// Sets the peak learning rate.
+    pub fn learning_rate(mut self, lr: f64) -> Self {
+        self.learning_rate = lr;
+        self
+    }
+    /// Starts from a trained model's weights (fine-tuning).
+    pub fn init(mut self, model: Option<PathBuf>) -> Self {
+        self.init = model;
         self
     }
     /// Sets steps per epoch.
@@ -188,6 +203,22 @@ fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser
     Ok(Denoiser::from_net(inference, config.clone(), device, "training"))
 }
 
+/// Random weights, or those of `options.init` after checking its config matches.
+fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, TrainError> {
+    let Some(path) = &options.init else {
+        return Ok(options.config.init(device));
+    };
+    let cfg_path = path.with_extension("json");
+    let text = std::fs::read_to_string(&cfg_path).map_err(|e| TrainError::io(&cfg_path, e))?;
+    let config: DenoiserConfig =
+        serde_json::from_str(&text).map_err(|e| TrainError::msg(&cfg_path, format!("not a model config: {e}")))?;
+    if config != options.config {
+        return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
+    }
+    let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
+    options.config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))
+}
+
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing
 /// checkpoints, `state.json`, and finally `model.bpk` + `model.json` into `out`.
 pub fn train(
@@ -226,7 +257,7 @@ pub fn train(
         (net, optim, state)
     } else {
         (
-            options.config.init(&device),
+            initial_net(options, &device)?,
             AdamConfig::new().init(),
             TrainState { options: options.clone(), step: 0, history: vec![], losses: vec![] },
         )

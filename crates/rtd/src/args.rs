@@ -66,6 +66,13 @@ pub struct TrainArgs {
     /// Network variant.
     #[arg(long, value_enum, default_value_t = VariantArg::Unet)]
     pub variant: VariantArg,
+    /// Peak learning rate (warm-up then cosine decay).
+    #[arg(long, default_value_t = 2e-3, value_parser = positive_rate)]
+    pub lr: f64,
+    /// Fine-tune: start from this model's weights (.bpk with its .json beside it); the network
+    /// is the one its config describes.
+    #[arg(long)]
+    pub init: Option<PathBuf>,
     /// Continue the run in --output after an interruption.
     #[arg(long)]
     pub resume: bool,
@@ -412,5 +419,15 @@ fn parse_fov(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v > 0.0 && v < 180.0 => Ok(v),
         _ => Err(format!("'{s}' is not a field of view in (0, 180) degrees")),
+    }
+}
+
+/// A learning rate in (0, 1].
+fn positive_rate(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in (0, 1]"))
     }
 }

@@ -44,12 +44,15 @@ fn bar_cancelled(bar: &TaskBar) -> bool {
 /// Runs `rtd train` and returns the final state.
 pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
     let bar = TaskBar::new(args.quiet);
-    let config = match args.variant {
-        VariantArg::Unet => DenoiserConfig::unet(),
-        VariantArg::SingleScale => DenoiserConfig::single_scale(),
+    let config = match (&args.init, args.variant) {
+        (Some(model), _) => rtd_denoise::Denoiser::load(model)?.config().clone(),
+        (None, VariantArg::Unet) => DenoiserConfig::unet(),
+        (None, VariantArg::SingleScale) => DenoiserConfig::single_scale(),
     };
     let mut options = TrainOptions::default()
         .config(config)
+        .learning_rate(args.lr)
+        .init(args.init.clone())
         .seed(args.seed)
         .steps(args.steps)
         .batch(args.batch as usize, args.crop as usize)
