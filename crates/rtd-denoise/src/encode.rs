@@ -154,7 +154,6 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, De
 mod tests {
     use super::*;
     use glam::Vec3;
-    use rayon::prelude::*;
 
     #[test]
     fn transfer_round_trips_and_sanitises() {
