@@ -45,7 +45,6 @@ impl Scratch {
             .or_else(|| (0..self.free.len()).max_by_key(|&i| self.free[i].capacity()));
         let mut data = pick.map(|i| self.free.swap_remove(i)).unwrap_or_default();
         data.resize(len, 0.0);
-        data.truncate(len);
         Map { w, h, c, data }
     }
 
