@@ -171,21 +171,9 @@ pub struct SpeedArgs {
 pub struct SuiteArgs {
     /// Scene files or directories of them (default: the bundled scenes/).
     pub scenes: Vec<PathBuf>,
-    /// Samples per pixel of the denoised pipeline.
-    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
-    pub spp: u32,
-    /// Samples per pixel of the rendered references.
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
-    pub reference_spp: u32,
-    /// Image width.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
-    pub width: u32,
-    /// Image height.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
-    pub height: u32,
-    /// Denoiser model instead of the built-in one.
-    #[arg(long)]
-    pub model: Option<PathBuf>,
+    /// Pipeline, reference and image size.
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
     /// Output directory.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -194,17 +182,13 @@ pub struct SuiteArgs {
     pub quiet: bool,
 }
 
-/// `rtd bench etrt` options.
+/// What `rtd bench etrt` and `rtd bench suite` measure: the pipeline's sample count, the
+/// reference's, the image size and the model.
 #[derive(Debug, Clone, Args)]
-pub struct EtrtArgs {
-    /// Scene file (its first camera is used).
-    pub scene: PathBuf,
+pub struct PipelineArgs {
     /// Samples per pixel of the denoised pipeline.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub spp: u32,
-    /// A reference EXR to score against (default: render one, cached).
-    #[arg(long, conflicts_with = "reference_spp")]
-    pub reference: Option<PathBuf>,
     /// Samples per pixel of a rendered reference.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
     pub reference_spp: u32,
@@ -214,12 +198,25 @@ pub struct EtrtArgs {
     /// Image height.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
     pub height: u32,
-    /// Seed of the measured render.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
     /// Denoiser model instead of the built-in one.
     #[arg(long)]
     pub model: Option<PathBuf>,
+}
+
+/// `rtd bench etrt` options.
+#[derive(Debug, Clone, Args)]
+pub struct EtrtArgs {
+    /// Scene file (its first camera is used).
+    pub scene: PathBuf,
+    /// Pipeline, reference and image size.
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// A reference EXR to score against (default: render one, cached).
+    #[arg(long, conflicts_with = "reference_spp")]
+    pub reference: Option<PathBuf>,
+    /// Seed of the measured render.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     /// Output directory: report.json, report.md, side-by-side.png, error-vs-time.png.
     #[arg(short, long)]
     pub output: PathBuf,

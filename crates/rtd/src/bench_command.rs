@@ -2,7 +2,7 @@
 
 use anyhow::Context;
 
-use crate::args::{BenchArgs, BenchCommand, EtrtArgs, SpeedArgs, SuiteArgs, ValidationArgs};
+use crate::args::{BenchArgs, BenchCommand, EtrtArgs, PipelineArgs, SpeedArgs, SuiteArgs, ValidationArgs};
 use crate::denoise_command::load_model;
 use crate::progress::TaskBar;
 use crate::render_command::write_json;
@@ -31,7 +31,7 @@ fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
 }
 
 fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
-    let model = load_model(args.model.as_ref())?;
+    let model = load_model(args.pipeline.model.as_ref())?;
     let mut scenes = vec![];
     let inputs = if args.scenes.is_empty() { vec![std::path::PathBuf::from("scenes")] } else { args.scenes.clone() };
     for p in inputs {
@@ -50,13 +50,7 @@ fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
     if scenes.is_empty() {
         anyhow::bail!("no scenes found (give .gltf/.glb/.obj files or directories)");
     }
-    let options = rtd_bench::EtrtOptions {
-        spp: args.spp,
-        width: args.width,
-        height: args.height,
-        reference_spp: args.reference_spp,
-        ..Default::default()
-    };
+    let options = etrt_options(&args.pipeline, 0);
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     let bar = TaskBar::new(args.quiet);
@@ -66,16 +60,21 @@ fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
-    let model = load_model(args.model.as_ref())?;
-    let options = rtd_bench::EtrtOptions {
-        spp: args.spp,
-        width: args.width,
-        height: args.height,
-        seed: args.seed,
-        reference_spp: args.reference_spp,
+/// The measurement options both `etrt` and `suite` take from their arguments.
+fn etrt_options(p: &PipelineArgs, seed: u64) -> rtd_bench::EtrtOptions {
+    rtd_bench::EtrtOptions {
+        spp: p.spp,
+        width: p.width,
+        height: p.height,
+        seed,
+        reference_spp: p.reference_spp,
         ..Default::default()
-    };
+    }
+}
+
+fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
+    let model = load_model(args.pipeline.model.as_ref())?;
+    let options = etrt_options(&args.pipeline, args.seed);
     let bar = TaskBar::new(args.quiet);
     let cache = args.output.join("cache");
     let (report, images) = rtd_bench::run_etrt(&args.scene, &model, &options, args.reference.as_deref(), &cache, &bar)?;
