@@ -37,11 +37,15 @@ pub struct AoPoint {
 }
 
 /// The fixed direction pattern: `n` cosine-weighted directions from a Hammersley set (+z up).
+/// Its first point (·, 0) would map to the rim of the concentric disk, a direction in the
+/// tangent plane whose hit or miss at a crease is decided by rounding in the BVH's box tests;
+/// it is lifted to the middle of its stratum instead.
 pub fn pattern(n: u32) -> Vec<Vec3> {
+    let first = 0.5 / n.max(1).next_power_of_two() as f64;
     (0..n)
         .map(|i| {
-            let u = Vec2::new((i as f32 + 0.5) / n as f32, (i.reverse_bits() as f64 / 4294967296.0) as f32);
-            sample_cosine_hemisphere(u)
+            let v = if i == 0 { first } else { i.reverse_bits() as f64 / 4294967296.0 };
+            sample_cosine_hemisphere(Vec2::new((i as f32 + 0.5) / n as f32, v as f32))
         })
         .collect()
 }
@@ -128,4 +132,23 @@ pub fn ao_image(
             ao_at(scene, bvh, &pt, dirs, radius)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pattern_directions_leave_the_surface_and_are_cosine_distributed() {
+        for n in [1, 2, 7, 24, 64, 4096] {
+            let dirs = pattern(n);
+            assert_eq!(dirs.len(), n as usize);
+            // No direction lies in the tangent plane.
+            assert!(dirs.iter().all(|d| d.z > 1e-3 && (d.length() - 1.0).abs() < 1e-5), "n = {n}");
+        }
+        // E[cosθ] under cosine weighting is 2/3.
+        let dirs = pattern(4096);
+        let mean = dirs.iter().map(|d| d.z as f64).sum::<f64>() / dirs.len() as f64;
+        assert!((mean - 2.0 / 3.0).abs() < 1e-3, "{mean}");
+    }
 }

@@ -240,11 +240,19 @@ fn raster_tri(
     // Per-sample offsets of the two edge functions from the pixel centre.
     let d0: [f32; SAMPLES] = std::array::from_fn(|s| a0 * offsets[s].x + b0 * offsets[s].y);
     let d1: [f32; SAMPLES] = std::array::from_fn(|s| a1 * offsets[s].x + b1 * offsets[s].y);
+    // Largest sample offsets of e0, e1 and e2: a pixel whose centre value plus the largest offset
+    // is negative has every sample outside that edge. (Addition is monotonic, so the e0/e1 tests
+    // are exact; e2 = 1 − e0 − e1 is rounded differently and gets a small safety margin.)
+    let (m0, m1) = (d0.iter().copied().fold(f32::MIN, f32::max), d1.iter().copied().fold(f32::MIN, f32::max));
+    let m2 = (0..SAMPLES).map(|s| -(d0[s] + d1[s])).fold(f32::MIN, f32::max);
     for py in py0..py1 {
         for px in px0..px1 {
             let (cxp, cyp) = (px as f32 + 0.5, py as f32 + 0.5);
             let e0c = a0 * cxp + b0 * cyp + c0;
             let e1c = a1 * cxp + b1 * cyp + c1;
+            if e0c + m0 < 0.0 || e1c + m1 < 0.0 || 1.0 - e0c - e1c + m2 < -1e-4 * (1.0 + e0c.abs() + e1c.abs()) {
+                continue;
+            }
             for s in 0..SAMPLES {
                 let (e0, e1) = (e0c + d0[s], e1c + d1[s]);
                 let e2 = 1.0 - e0 - e1;
