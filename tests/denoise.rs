@@ -104,6 +104,39 @@ fn black_input_gives_black_output_and_constants_stay_constant() {
         assert!(spread <= 0.01, "output of constant {value} varies by {spread} of it");
         assert!(((centre.x / value) - 1.0).abs() < 0.05, "constant {value} became {centre:?}");
     }
+    // The same with a constant albedo and normal, which the shipped model demodulates by.
+    let (albedo, normal) = (HdrImage::from_pixels(w, h, vec![Vec3::splat(0.6); (w * h) as usize]), {
+        HdrImage::from_pixels(w, h, vec![Vec3::Z; (w * h) as usize])
+    });
+    let c = HdrImage::from_pixels(w, h, vec![Vec3::splat(0.7); (w * h) as usize]);
+    let out = m.denoise(&DenoiseInput::new(&c, &grey).albedo_normal(&albedo, &normal)).unwrap();
+    let centre = out.get(w / 2, h / 2);
+    let spread = out.pixels.iter().map(|p| (*p - centre).abs().max_element()).fold(0.0, f32::max) / 0.7;
+    assert!(spread <= 0.01 && ((centre.x / 0.7) - 1.0).abs() < 0.05, "constant with albedo: {centre:?}, {spread}");
+}
+
+/// The shipped model denoises lighting: colour is divided by albedo + ε before the network, and
+/// its decoded output is multiplied by the same factor. Without albedo nothing is divided.
+#[test]
+fn the_shipped_model_demodulates_by_albedo_and_multiplies_it_back() {
+    use rtd::denoise::encode::{auto_exposure, decode_color, encode_planes, DEMOD_EPS};
+    let m = model();
+    assert!(m.config().demodulates());
+    let (color, g) = cornell_inputs(40, 36);
+    let (w, h) = (40usize, 36usize);
+    let n = w * h;
+    for input in [full_input(&color, &g), DenoiseInput::new(&color, &g.guide)] {
+        let e = auto_exposure(&color);
+        let raw = m.run_planes(&encode_planes(&input, e, true).unwrap(), w, h);
+        let out = m.denoise(&input).unwrap();
+        for i in 0..n {
+            for k in 0..3 {
+                let factor = input.albedo_normal.map_or(1.0, |(a, _)| a.pixels[i][k].clamp(0.0, 1.0) + DEMOD_EPS);
+                let expected = decode_color(raw[k * n + i], e) * factor;
+                assert!((out.pixels[i][k] - expected).abs() <= 1e-6 * expected.max(1.0), "pixel {i} channel {k}");
+            }
+        }
+    }
 }
 
 #[test]

@@ -9,6 +9,9 @@ use crate::{DenoiseError, INPUT_CHANNELS};
 /// Largest colour value accepted before exposure; +Inf and larger values are clamped to it.
 pub const MAX_INPUT: f32 = 1e7;
 
+/// Added to the albedo before demodulating, so black albedo divides by this, not by 0.
+pub const DEMOD_EPS: f32 = 0.01;
+
 /// What the denoiser is given. Colour and a guide are required; albedo + normal and AO + depth
 /// are optional pairs (rtd's own renders have all of them).
 #[derive(Clone, Copy)]
@@ -117,8 +120,30 @@ pub fn decode_color(y: f32, exposure: f32) -> f32 {
     (y.max(0.0).min(80.0).exp_m1() / exposure).min(f32::MAX)
 }
 
-/// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order.
-pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, DenoiseError> {
+/// The per-channel factor colour is divided by before encoding (and the output multiplied by
+/// after decoding): albedo + [`DEMOD_EPS`], or 1 where the model does not demodulate or no
+/// albedo is given.
+pub fn demod_factor(albedo: Option<&HdrImage>, i: usize, k: usize) -> f32 {
+    albedo.map_or(1.0, |a| clean(a.pixels[i][k], 0.0, 1.0) + DEMOD_EPS)
+}
+
+/// The albedo colour is demodulated by: the input's albedo when `demodulate` is set.
+pub fn demod_albedo<'a>(input: &DenoiseInput<'a>, demodulate: bool) -> Option<&'a HdrImage> {
+    input.albedo_normal.filter(|_| demodulate).map(|(a, _)| a)
+}
+
+/// Writes channel `k` of `color`, divided by `albedo` + [`DEMOD_EPS`] if given, encoded, into
+/// `plane` (one value per pixel).
+pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&HdrImage>, k: usize, exposure: f32) {
+    for (i, (v, p)) in plane.iter_mut().zip(&color.pixels).enumerate() {
+        // ln(1 + exposure · colour / demodulation factor); the factor is at least DEMOD_EPS.
+        *v = (clean(p[k], 0.0, MAX_INPUT) / demod_factor(albedo, i, k) * exposure).ln_1p();
+    }
+}
+
+/// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order. With
+/// `demodulate` and an albedo layer, the colour planes hold colour ÷ (albedo + [`DEMOD_EPS`]).
+pub fn encode_planes(input: &DenoiseInput, exposure: f32, demodulate: bool) -> Result<Vec<f32>, DenoiseError> {
     let (w, h) = input.size()?;
     let n = (w * h) as usize;
     let depth_scale = input.ao_depth.map(|(_, d)| {
@@ -129,12 +154,13 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32) -> Result<Vec<f32>, De
             hits.len() as f32 / hits.iter().sum::<f32>()
         }
     });
+    let demod = demod_albedo(input, demodulate);
     let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
     // One plane per task; absent inputs leave their planes (and flags) at 0.
     planes.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
-        let (k, color, guide) = (c % 3, &input.color.pixels, &input.guide.pixels);
+        let (k, guide) = (c % 3, &input.guide.pixels);
         match (c, input.albedo_normal, input.ao_depth.zip(depth_scale)) {
-            (0..=2, _, _) => plane.iter_mut().zip(color).for_each(|(v, p)| *v = encode_color(p[k], exposure)),
+            (0..=2, _, _) => encode_color_plane(plane, input.color, demod, k, exposure),
             (3..=5, _, _) => plane.iter_mut().zip(guide).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
             (6..=8, Some((a, _)), _) => plane.iter_mut().zip(&a.pixels).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
             (9..=11, Some((_, nrm)), _) => {
@@ -174,6 +200,26 @@ mod tests {
         let scaled = HdrImage::from_pixels(2, 1, vec![Vec3::splat(5e5), Vec3::splat(2e6)]);
         assert!((auto_exposure(&scaled) * 1e6 - 0.18).abs() < 1e-6);
         assert_eq!(auto_exposure(&HdrImage::new(3, 3)), 1.0);
+    }
+
+    #[test]
+    fn demodulation_divides_colour_by_albedo_only_when_asked_and_given() {
+        let color = HdrImage::from_pixels(2, 1, vec![Vec3::new(0.5, 1.0, 2.0), Vec3::splat(3.0)]);
+        let albedo = HdrImage::from_pixels(2, 1, vec![Vec3::new(0.24, 0.49, 0.0), Vec3::splat(2.0)]);
+        let normal = HdrImage::from_pixels(2, 1, vec![Vec3::Z; 2]);
+        let with = DenoiseInput::new(&color, &color).albedo_normal(&albedo, &normal);
+        let demod = encode_planes(&with, 0.7, true).unwrap();
+        let plain = encode_planes(&with, 0.7, false).unwrap();
+        // Albedo + ε: 0.25, 0.5, 0.01; albedo above 1 is clamped to 1 first.
+        let expected = [0.5 / 0.25, 3.0 / 1.01, 1.0 / 0.5, 3.0 / 1.01, 2.0 / 0.01, 3.0 / 1.01];
+        for (v, x) in demod[..6].iter().zip(expected) {
+            assert!((v - encode_color(x, 0.7)).abs() < 1e-5, "{v} vs {x}");
+        }
+        assert_eq!(demod[6..], plain[6..], "only the colour planes change");
+        assert_ne!(demod[..6], plain[..6]);
+        // Without an albedo layer there is nothing to divide by.
+        let without = DenoiseInput::new(&color, &color);
+        assert_eq!(encode_planes(&without, 0.7, true).unwrap(), encode_planes(&without, 0.7, false).unwrap());
     }
 
     #[test]

@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rtd_image::HdrImage;
 
-use crate::encode::{auto_exposure, decode_color, encode_planes, DenoiseInput};
+use crate::encode::{auto_exposure, decode_color, demod_albedo, demod_factor, encode_planes, DenoiseInput};
 use crate::fast::{FastNet, Map, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::{DenoiseError, INPUT_CHANNELS};
@@ -138,18 +138,13 @@ impl Denoiser {
             return Err(DenoiseError::Input(format!("image size {w}x{h} is outside 1..={MAX_SIDE} per side")));
         }
         let exposure = auto_exposure(input.color);
-        let planes = encode_planes(input, exposure)?;
+        let planes = encode_planes(input, exposure, self.config.demodulates())?;
         let out = self.run_planes(&planes, w as usize, h as usize);
         let n = (w * h) as usize;
-        let pixels = (0..n)
-            .map(|i| {
-                Vec3::new(
-                    decode_color(out[i], exposure),
-                    decode_color(out[n + i], exposure),
-                    decode_color(out[2 * n + i], exposure),
-                )
-            })
-            .collect();
+        // Decode, then multiply the albedo back in if the colour was demodulated.
+        let demod = demod_albedo(input, self.config.demodulates());
+        let channel = |k: usize, i: usize| (decode_color(out[k * n + i], exposure) * demod_factor(demod, i, k)).min(f32::MAX);
+        let pixels = (0..n).map(|i| Vec3::new(channel(0, i), channel(1, i), channel(2, i))).collect();
         Ok(HdrImage::from_pixels(w, h, pixels))
     }
 

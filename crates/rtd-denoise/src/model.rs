@@ -29,6 +29,11 @@ pub struct DenoiserConfig {
     /// Input channels (always [`INPUT_CHANNELS`] for this version; checked on load).
     #[config(default = 16)]
     pub input_channels: usize,
+    /// Whether noisy colour and the network's output are divided by the albedo (plus
+    /// [`crate::encode::DEMOD_EPS`]) when an albedo layer is given, so the network denoises
+    /// lighting and the texture is multiplied back exactly. Absent (older model files) means
+    /// no; read it through [`DenoiserConfig::demodulates`].
+    pub demodulate: Option<bool>,
 }
 
 impl DenoiserConfig {
@@ -40,6 +45,11 @@ impl DenoiserConfig {
     /// The single-scale variant: inception blocks at full resolution only, with dilations.
     pub fn single_scale() -> Self {
         DenoiserConfig::new(vec![32]).with_bottleneck_blocks(4)
+    }
+
+    /// Whether colour is demodulated by albedo (see the `demodulate` field).
+    pub fn demodulates(&self) -> bool {
+        self.demodulate.unwrap_or(false)
     }
 
     /// The resolution factor the image size must be padded to: 2^(levels−1).

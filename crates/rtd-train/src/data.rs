@@ -7,7 +7,7 @@ use std::path::Path;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rtd_denoise::encode::{auto_exposure, encode_color, encode_planes};
+use rtd_denoise::encode::{auto_exposure, demod_albedo, encode_color_plane, encode_planes};
 use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
 use rtd_image::HdrImage;
 
@@ -84,6 +84,19 @@ struct Encoded {
     h: usize,
     planes: Vec<f32>,
     target: Vec<f32>,
+    /// For a demodulating model: the colour planes and target without demodulation, used by
+    /// crops whose albedo layer is dropped (inference demodulates only when albedo is given).
+    plain: Option<(Vec<f32>, Vec<f32>)>,
+}
+
+/// Encodes the three channels of `img` (demodulated by `albedo` if given) into 3 × H × W.
+fn encode_rgb(img: &HdrImage, albedo: Option<&HdrImage>, exposure: f32) -> Vec<f32> {
+    let n = img.pixels.len();
+    let mut out = vec![0.0f32; 3 * n];
+    for (k, plane) in out.chunks_mut(n).enumerate() {
+        encode_color_plane(plane, img, albedo, k, exposure);
+    }
+    out
 }
 
 /// Random crops for training.
@@ -98,17 +111,18 @@ pub struct CropSampler {
 pub const DROP_PROBABILITY: f32 = 0.3;
 
 impl CropSampler {
-    /// Encodes every view at every stored sample count.
-    pub fn new(views: &[View], crop: usize) -> Result<Self, TrainError> {
+    /// Encodes every view at every stored sample count, demodulating colour and target by the
+    /// albedo if `demodulate` is set.
+    pub fn new(views: &[View], crop: usize, demodulate: bool) -> Result<Self, TrainError> {
         let mut encoded = vec![];
         for v in views {
             for (spp, _) in &v.noisy {
                 let input = v.input(*spp);
                 let e = auto_exposure(input.color);
-                let planes = encode_planes(&input, e)?;
-                let target =
-                    (0..3).flat_map(|c| v.reference.pixels.iter().map(move |p| encode_color(p[c], e))).collect();
-                encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target });
+                let planes = encode_planes(&input, e, demodulate)?;
+                let target = encode_rgb(&v.reference, demod_albedo(&input, demodulate), e);
+                let plain = demodulate.then(|| (encode_rgb(input.color, None, e), encode_rgb(&v.reference, None, e)));
+                encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, plain });
             }
         }
         Ok(CropSampler { encoded, crop })
@@ -150,16 +164,25 @@ impl CropSampler {
                 let zero = (black && c < 3)
                     || (drop_an && (6..12).contains(&c) || c == 14 && drop_an)
                     || (drop_ad && matches!(c, 12 | 13 | 15));
+                // Without albedo, colour is not demodulated.
+                let plane = match (&e.plain, c < 3 && drop_an) {
+                    (Some((color, _)), true) => &color[sc * n_px..][..n_px],
+                    _ => &e.planes[sc * n_px..][..n_px],
+                };
                 for y in 0..s {
                     for x in 0..s {
-                        xs.push(if zero { 0.0 } else { e.planes[sc * n_px + src(x, y)] });
+                        xs.push(if zero { 0.0 } else { plane[src(x, y)] });
                     }
                 }
             }
+            let target = match &e.plain {
+                Some((_, target)) if drop_an => target,
+                _ => &e.target,
+            };
             for c in 0..3 {
                 for y in 0..s {
                     for x in 0..s {
-                        ys.push(if black { 0.0 } else { e.target[perm[c] * n_px + src(x, y)] });
+                        ys.push(if black { 0.0 } else { target[perm[c] * n_px + src(x, y)] });
                     }
                 }
             }
@@ -207,18 +230,26 @@ mod tests {
 
     #[test]
     fn batches_are_reproducible_and_augmentations_keep_input_and_target_aligned() {
-        let sampler = CropSampler::new(&[toy_view()], 8).unwrap();
-        let (x1, y1) = sampler.batch(3, 17, 4);
-        let (x2, y2) = sampler.batch(3, 17, 4);
-        assert_eq!((x1.clone(), y1.clone()), (x2, y2));
-        assert_ne!(x1, sampler.batch(3, 18, 4).0);
-        // Here target == noisy colour, so whatever the flip/transpose/permutation, the first
-        // three input channels of every non-black crop equal its target.
-        let px = 64;
-        for b in 0..4 {
-            let xin = &x1[b * INPUT_CHANNELS * px..][..3 * px];
-            let yt = &y1[b * 3 * px..][..3 * px];
-            assert_eq!(xin, yt);
+        for demodulate in [false, true] {
+            let sampler = CropSampler::new(&[toy_view()], 8, demodulate).unwrap();
+            let (x1, y1) = sampler.batch(3, 17, 4);
+            let (x2, y2) = sampler.batch(3, 17, 4);
+            assert_eq!((x1.clone(), y1.clone()), (x2, y2));
+            assert_ne!(x1, sampler.batch(3, 18, 4).0);
+            // Here target == noisy colour, so whatever the flip/transpose/permutation and
+            // whether the albedo (and with it demodulation) is dropped, the first three input
+            // channels of every crop equal its target.
+            let px = 64;
+            for b in 0..4 {
+                let xin = &x1[b * INPUT_CHANNELS * px..][..3 * px];
+                let yt = &y1[b * 3 * px..][..3 * px];
+                assert_eq!(xin, yt);
+            }
         }
+        // Demodulation divides by albedo + eps: the toy's blue albedo 0.6 scales colour by 1/0.61.
+        let (plain, demod) =
+            (CropSampler::new(&[toy_view()], 8, false).unwrap(), CropSampler::new(&[toy_view()], 8, true).unwrap());
+        assert_ne!(plain.encoded[0].planes[..192], demod.encoded[0].planes[..192]);
+        assert_eq!(plain.encoded[0].planes[192..], demod.encoded[0].planes[192..]);
     }
 }

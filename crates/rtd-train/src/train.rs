@@ -212,7 +212,9 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     let text = std::fs::read_to_string(&cfg_path).map_err(|e| TrainError::io(&cfg_path, e))?;
     let config: DenoiserConfig =
         serde_json::from_str(&text).map_err(|e| TrainError::msg(&cfg_path, format!("not a model config: {e}")))?;
-    if config != options.config {
+    // Demodulation changes what the colour planes mean, not the weights' shapes, so a model
+    // without it may seed one with it.
+    if config.clone().with_demodulate(options.config.demodulate) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
@@ -267,7 +269,7 @@ pub fn train(
     if train_views.is_empty() {
         return Err(TrainError::msg(&data.join("manifest.json"), "has no training views"));
     }
-    let sampler = CropSampler::new(&train_views, options.crop)?;
+    let sampler = CropSampler::new(&train_views, options.crop, options.config.demodulates())?;
     progress.start(options.steps, "train");
     progress.inc(state.step);
     let mut epoch_start = Instant::now();

@@ -69,6 +69,10 @@ pub struct TrainArgs {
     /// Peak learning rate (warm-up then cosine decay).
     #[arg(long, default_value_t = 2e-3, value_parser = positive_rate)]
     pub lr: f64,
+    /// Divide colour by the albedo before the network and multiply it back after (saved in the
+    /// model's config; with --init, the initial model may lack it).
+    #[arg(long)]
+    pub demodulate: bool,
     /// Fine-tune: start from this model's weights (.bpk with its .json beside it); the network
     /// is the one its config describes.
     #[arg(long)]

@@ -49,6 +49,7 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         (None, VariantArg::Unet) => DenoiserConfig::unet(),
         (None, VariantArg::SingleScale) => DenoiserConfig::single_scale(),
     };
+    let config = if args.demodulate { config.with_demodulate(Some(true)) } else { config };
     let mut options = TrainOptions::default()
         .config(config)
         .learning_rate(args.lr)
