@@ -13,6 +13,7 @@ use rtd_guide::{GuidePass, GuideSettings};
 use rtd_image::metrics::{metrics, Metrics};
 use rtd_image::{HdrImage, Layers};
 use rtd_render::{PathTracer, RenderScene, RenderSettings, Silent};
+use rtd_scene::Camera;
 use serde::{Deserialize, Serialize};
 
 use crate::{BenchError, Progress};
@@ -176,6 +177,13 @@ pub fn reference(
     Ok((img, format!("{} spp, rendered and cached {}", o.reference_spp, path.display()), Some(noise_relmse)))
 }
 
+/// Loads `scene_path`, builds its BVH and picks its first camera.
+pub fn load_with_camera(scene_path: &Path) -> Result<(RenderScene, Camera), BenchError> {
+    let scene = rtd_scene::load_scene(scene_path)?;
+    let (cam, _) = scene.select_camera(None).map_err(|e| BenchError::msg(scene_path, e))?;
+    Ok((RenderScene::new(scene), cam))
+}
+
 /// Runs the whole comparison on `scene` (its first camera).
 pub fn run_etrt(
     scene_path: &Path,
@@ -185,16 +193,30 @@ pub fn run_etrt(
     cache_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<(EtrtReport, EtrtImages), BenchError> {
+    let (rs, cam) = load_with_camera(scene_path)?;
+    run_etrt_on(scene_path, &rs, &cam, denoiser, options, given_reference, cache_dir, progress)
+}
+
+/// [`run_etrt`] on an already loaded scene (`scene_path` names it and keys the reference cache).
+#[allow(clippy::too_many_arguments)]
+pub fn run_etrt_on(
+    scene_path: &Path,
+    rs: &RenderScene,
+    cam: &Camera,
+    denoiser: &Denoiser,
+    options: &EtrtOptions,
+    given_reference: Option<&Path>,
+    cache_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<(EtrtReport, EtrtImages), BenchError> {
     let o = options;
-    let scene = rtd_scene::load_scene(scene_path)?;
-    let (cam, _) = scene.select_camera(None).map_err(|e| BenchError::msg(scene_path, e))?;
-    let rs = RenderScene::new(scene);
+    let (rs, cam) = (rs, cam.clone());
     progress.start(6, "etrt");
     let (reference, reference_desc, reference_relmse) =
-        reference(&rs, &cam, scene_path, o, given_reference, cache_dir, progress)?;
+        reference(rs, &cam, scene_path, o, given_reference, cache_dir, progress)?;
     progress.inc(1);
     // The rtd pipeline, timed part by part.
-    let tracer = PathTracer::new(&rs, cam.clone(), RenderSettings::new(o.width, o.height).seed(o.seed))?;
+    let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(o.width, o.height).seed(o.seed))?;
     let mut film = tracer.film();
     let t = Instant::now();
     tracer.render(&mut film, o.spp)?;

@@ -11,7 +11,7 @@ use rtd_image::plot::{write_charts, Chart, Series};
 use rtd_render::{PathTracer, RenderScene, RenderSettings};
 use serde::{Deserialize, Serialize};
 
-use crate::etrt::{reference, run_etrt, write_etrt, write_text, EtrtOptions, EtrtReport, CROP};
+use crate::etrt::{load_with_camera, run_etrt_on, write_etrt, write_text, EtrtOptions, EtrtReport, CROP};
 use crate::{BenchError, Progress};
 
 /// The sweep's sample counts.
@@ -88,13 +88,10 @@ pub fn run_suite(
         let stem = scene_path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
         let sub = dir.join(&stem);
         let cache = dir.join("cache");
-        let (report, images) = run_etrt(scene_path, denoiser, o, None, &cache, progress)?;
+        let (rs, cam) = load_with_camera(scene_path)?;
+        let (report, images) = run_etrt_on(scene_path, &rs, &cam, denoiser, o, None, &cache, progress)?;
         write_etrt(&sub, &report, &images)?;
-        let scene = rtd_scene::load_scene(scene_path)?;
-        let (cam, _) = scene.select_camera(None).map_err(|e| BenchError::msg(scene_path, e))?;
-        let rs = RenderScene::new(scene);
-        let (reference, _, _) = reference(&rs, &cam, scene_path, o, None, &cache, progress)?;
-        let sweep = spp_sweep(&rs, &cam, denoiser, o, &reference)?;
+        let sweep = spp_sweep(&rs, &cam, denoiser, o, &images.reference)?;
         results.push(SceneResult { etrt: report, sweep });
         // Summaries are rewritten after every scene, so an interrupted suite keeps finished work.
         write_summary(dir, &results)?;
