@@ -143,7 +143,8 @@ impl Denoiser {
         let n = (w * h) as usize;
         // Decode, then multiply the albedo back in if the colour was demodulated.
         let demod = demod_albedo(input, self.config.demodulates());
-        let channel = |k: usize, i: usize| (decode_color(out[k * n + i], exposure) * demod_factor(demod, i, k)).min(f32::MAX);
+        let channel =
+            |k: usize, i: usize| (decode_color(out[k * n + i], exposure) * demod_factor(demod, i, k)).min(f32::MAX);
         let pixels = (0..n).map(|i| Vec3::new(channel(0, i), channel(1, i), channel(2, i))).collect();
         Ok(HdrImage::from_pixels(w, h, pixels))
     }
