@@ -210,10 +210,9 @@ pub fn run_etrt_on(
     progress: &dyn Progress,
 ) -> Result<(EtrtReport, EtrtImages), BenchError> {
     let o = options;
-    let (rs, cam) = (rs, cam.clone());
     progress.start(6, "etrt");
     let (reference, reference_desc, reference_relmse) =
-        reference(rs, &cam, scene_path, o, given_reference, cache_dir, progress)?;
+        reference(rs, cam, scene_path, o, given_reference, cache_dir, progress)?;
     progress.inc(1);
     // The rtd pipeline, timed part by part.
     let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(o.width, o.height).seed(o.seed))?;
@@ -222,7 +221,7 @@ pub fn run_etrt_on(
     tracer.render(&mut film, o.spp)?;
     let render_s = t.elapsed().as_secs_f64();
     let noisy = film.beauty();
-    let guide = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(o.width, o.height))?;
+    let guide = GuidePass::render(&rs.scene, &rs.bvh, cam, &GuideSettings::new(o.width, o.height))?;
     let t = Instant::now();
     let input = DenoiseInput::with_guide_pass(&noisy, &guide);
     let denoised = denoiser.denoise(&input)?;

@@ -109,7 +109,13 @@ pub fn auto_exposure(color: &HdrImage) -> f32 {
 
 /// The colour transfer: y = ln(1 + x · exposure).
 pub fn encode_color(x: f32, exposure: f32) -> f32 {
-    (clean(x, 0.0, MAX_INPUT) * exposure).ln_1p()
+    transfer(clean(x, 0.0, MAX_INPUT), exposure)
+}
+
+/// ln(1 + x · exposure) of an already sanitised x.
+#[inline]
+fn transfer(x: f32, exposure: f32) -> f32 {
+    (x * exposure).ln_1p()
 }
 
 /// The inverse transfer: x = (e^y − 1) / exposure, for y ≥ 0.
@@ -136,8 +142,9 @@ pub fn demod_albedo<'a>(input: &DenoiseInput<'a>, demodulate: bool) -> Option<&'
 /// `plane` (one value per pixel).
 pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&HdrImage>, k: usize, exposure: f32) {
     for (i, (v, p)) in plane.iter_mut().zip(&color.pixels).enumerate() {
-        // ln(1 + exposure · colour / demodulation factor); the factor is at least DEMOD_EPS.
-        *v = (clean(p[k], 0.0, MAX_INPUT) / demod_factor(albedo, i, k) * exposure).ln_1p();
+        // The transfer of colour ÷ demodulation factor (at least DEMOD_EPS, so finite; not
+        // clamped again, so demodulated HDR keeps its range).
+        *v = transfer(clean(p[k], 0.0, MAX_INPUT) / demod_factor(albedo, i, k), exposure);
     }
 }
 
