@@ -13,6 +13,18 @@ fn tiny_dataset(dir: &Path) -> Manifest {
     generate_dataset(dir, &options, &Quiet).unwrap()
 }
 
+/// A two-level, 8-channel network: enough to train in a test.
+fn tiny_config() -> rtd::denoise::DenoiserConfig {
+    rtd::denoise::DenoiserConfig::new(vec![8, 8]).with_bottleneck_blocks(1)
+}
+
+/// What the model saved in `run_dir` computes on a fixed 8×8 input.
+fn saved_model_output(run_dir: &Path) -> Vec<f32> {
+    let m = rtd::denoise::Denoiser::load(&run_dir.join("model.bpk")).unwrap();
+    let planes: Vec<f32> = (0..rtd::denoise::INPUT_CHANNELS * 64).map(|i| (i % 7) as f32 * 0.1).collect();
+    m.run_planes(&planes, 8, 8)
+}
+
 #[test]
 fn datagen_resumes_without_redoing_views_and_splits_by_scene() {
     let dir = tempfile::tempdir().unwrap();
@@ -80,8 +92,7 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     tiny_dataset(&data);
-    let cfg = rtd::denoise::DenoiserConfig::new(vec![8, 8]).with_bottleneck_blocks(1);
-    let options = TrainOptions::default().config(cfg).batch(2, 16).steps(6).epoch_steps(3);
+    let options = TrainOptions::default().config(tiny_config()).batch(2, 16).steps(6).epoch_steps(3);
     let a = train(&data, &dir.path().join("a"), &options, false, &Quiet).unwrap();
     let b = train(&data, &dir.path().join("b"), &options, false, &Quiet).unwrap();
     assert_eq!(a.losses, b.losses, "same seed, same losses");
@@ -103,11 +114,7 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     assert_eq!(resumed.step, 6);
     assert_eq!(resumed.losses, a.losses, "a resumed run continues exactly");
     // The resumed model computes exactly what the uninterrupted one does.
-    let run = |d: &str| {
-        let m = rtd::denoise::Denoiser::load(&dir.path().join(d).join("model.bpk")).unwrap();
-        let planes: Vec<f32> = (0..rtd::denoise::INPUT_CHANNELS * 64).map(|i| (i % 7) as f32 * 0.1).collect();
-        m.run_planes(&planes, 8, 8)
-    };
+    let run = |d: &str| saved_model_output(&dir.path().join(d));
     assert!(run("a") == run("c"), "resumed weights differ");
 }
 
@@ -116,8 +123,7 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     tiny_dataset(&data);
-    let cfg = rtd::denoise::DenoiserConfig::new(vec![8, 8]).with_bottleneck_blocks(1);
-    let options = TrainOptions::default().config(cfg.clone()).batch(2, 16).steps(4).epoch_steps(4);
+    let options = TrainOptions::default().config(tiny_config()).batch(2, 16).steps(4).epoch_steps(4);
     train(&data, &dir.path().join("a"), &options, false, &Quiet).unwrap();
     let a_model = dir.path().join("a/model.bpk");
     // One step at a negligible rate from a's weights: the result computes what a does, and
@@ -126,11 +132,7 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     train(&data, &dir.path().join("b"), &tuned, false, &Quiet).unwrap();
     let fresh = options.clone().steps(1).learning_rate(1e-12).seed(9);
     train(&data, &dir.path().join("c"), &fresh, false, &Quiet).unwrap();
-    let run = |d: &str| {
-        let m = rtd::denoise::Denoiser::load(&dir.path().join(d).join("model.bpk")).unwrap();
-        let planes: Vec<f32> = (0..rtd::denoise::INPUT_CHANNELS * 64).map(|i| (i % 7) as f32 * 0.1).collect();
-        m.run_planes(&planes, 8, 8)
-    };
+    let run = |d: &str| saved_model_output(&dir.path().join(d));
     let diff = |x: &[f32], y: &[f32]| x.iter().zip(y).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max);
     assert!(diff(&run("a"), &run("b")) < 1e-4, "fine-tuning did not start from the given weights");
     assert!(diff(&run("a"), &run("c")) > 1e-3, "a fresh network should differ");
