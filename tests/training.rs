@@ -136,6 +136,13 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let diff = |x: &[f32], y: &[f32]| x.iter().zip(y).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max);
     assert!(diff(&run("a"), &run("b")) < 1e-4, "fine-tuning did not start from the given weights");
     assert!(diff(&run("a"), &run("c")) > 1e-3, "a fresh network should differ");
+    // A model without demodulation may seed a demodulating run of the same shape, which then
+    // says so in its config.
+    let demod = tuned.clone().config(tiny_config().with_demodulate(Some(true)));
+    train(&data, &dir.path().join("e"), &demod, false, &Quiet).unwrap();
+    let cfg = std::fs::read_to_string(dir.path().join("e/model.json")).unwrap();
+    let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
+    assert!(cfg.demodulates());
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();
