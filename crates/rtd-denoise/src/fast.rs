@@ -137,27 +137,39 @@ impl Conv {
                     (&x.data[p0 * self.cin..], self.cin)
                 } else {
                     // im2col: one row of kh·kw·cin taps per output pixel, zeros outside the map.
-                    col.clear();
-                    col.resize(rows * k, 0.0);
-                    for r in 0..rows {
+                    // Every entry is written, so the buffer is not cleared first.
+                    if col.len() < rows * k {
+                        col.resize(rows * k, 0.0);
+                    }
+                    let cin = self.cin;
+                    let row_taps = self.kw * cin;
+                    for (r, taps) in col[..rows * k].chunks_exact_mut(k).enumerate() {
                         let (px, py) = ((p0 + r) % w, (p0 + r) / w);
-                        for ky in 0..self.kh {
+                        for (ky, seg) in taps.chunks_exact_mut(row_taps).enumerate() {
                             let sy = py as isize + (ky * self.dil) as isize - ph as isize;
                             if sy < 0 || sy >= h as isize {
+                                seg.fill(0.0);
                                 continue;
                             }
-                            for kx in 0..self.kw {
+                            let line = sy as usize * w;
+                            if self.dil == 1 && px >= pw && px + pw < w {
+                                // Undilated and inside: the row's taps are contiguous in the map.
+                                let src = (line + px - pw) * cin;
+                                seg.copy_from_slice(&x.data[src..src + row_taps]);
+                                continue;
+                            }
+                            for (kx, tap) in seg.chunks_exact_mut(cin).enumerate() {
                                 let sx = px as isize + (kx * self.dil) as isize - pw as isize;
                                 if sx < 0 || sx >= w as isize {
-                                    continue;
+                                    tap.fill(0.0);
+                                } else {
+                                    let src = (line + sx as usize) * cin;
+                                    tap.copy_from_slice(&x.data[src..src + cin]);
                                 }
-                                let src = (sy as usize * w + sx as usize) * self.cin;
-                                let d = r * k + (ky * self.kw + kx) * self.cin;
-                                col[d..d + self.cin].copy_from_slice(&x.data[src..src + self.cin]);
                             }
                         }
                     }
-                    (&col[..], k)
+                    (&col[..rows * k], k)
                 };
                 let base = unsafe { out.get().add(p0 * stride + offset) };
                 // dst[rows × cout] = lhs[rows × k] · weights[k × cout]
