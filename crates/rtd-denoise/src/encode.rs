@@ -123,7 +123,7 @@ pub fn decode_color(y: f32, exposure: f32) -> f32 {
     if y.is_nan() {
         return 0.0;
     }
-    (y.max(0.0).min(80.0).exp_m1() / exposure).min(f32::MAX)
+    (y.clamp(0.0, 80.0).exp_m1() / exposure).min(f32::MAX)
 }
 
 /// The per-channel factor colour is divided by before encoding (and the output multiplied by

@@ -3,7 +3,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use glam::{DVec3, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use rtd_scene::{Camera, Scene};
 
@@ -318,7 +318,7 @@ impl<'a> PathTracer<'a> {
                             l *= c / m;
                         }
                     }
-                    beauty[x] += DVec3::from(l.as_dvec3());
+                    beauty[x] += l.as_dvec3();
                     if r.aov.albedo.is_finite() && r.aov.normal.is_finite() && r.aov.depth.is_finite() {
                         albedo[x] += r.aov.albedo;
                         normal[x] += r.aov.normal;

@@ -138,9 +138,9 @@ mod tests {
     fn byte_tables_match_the_direction_numbers() {
         for i in [0u32, 1, 2, 3, 255, 256, 12345, 0xdead_beef, u32::MAX] {
             let mut x = 0;
-            for bit in 0..32 {
+            for (bit, v) in SOBOL_DIM1.iter().enumerate() {
                 if i & (1 << bit) != 0 {
-                    x ^= SOBOL_DIM1[bit];
+                    x ^= v;
                 }
             }
             assert_eq!(sobol_dim1(i), x, "index {i}");

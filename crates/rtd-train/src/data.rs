@@ -162,7 +162,7 @@ impl CropSampler {
                     _ => c,
                 };
                 let zero = (black && c < 3)
-                    || (drop_an && (6..12).contains(&c) || c == 14 && drop_an)
+                    || (drop_an && ((6..12).contains(&c) || c == 14))
                     || (drop_ad && matches!(c, 12 | 13 | 15));
                 // Without albedo, colour is not demodulated.
                 let plane = match (&e.plain, c < 3 && drop_an) {
