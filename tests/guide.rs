@@ -140,18 +140,31 @@ fn albedo_agrees_with_the_path_tracer_and_edges_line_up() {
     }
 }
 
-/// Sparse AO with upsampling stays close to AO evaluated at every pixel.
+/// Sparse AO with upsampling is as close to converged AO (256 rays at every pixel) as AO with
+/// the same 24 rays evaluated at every pixel. (The fixed pattern bands: dense 24-ray AO steps by
+/// 1/24 where one ray starts to hit, and the sparse lattice smooths those steps, so the
+/// converged AO is the fair reference.) Interpolating across surfaces, or too coarse a lattice,
+/// fails this.
 #[test]
-fn sparse_ao_matches_dense_ao() {
+fn sparse_ao_is_as_close_to_converged_ao_as_dense_ao() {
     for name in ["cornell-box", "textured-interior", "glass-and-metals", "small-lights"] {
         let scene = rtd::scene::load_scene(&repo_path(&format!("scenes/{name}.gltf"))).unwrap();
         let cam = scene.select_camera(None).unwrap().0;
         let sparse = guide(&scene, &cam, GuideSettings::new(128, 96));
         let dense = guide(&scene, &cam, GuideSettings::new(128, 96).ao_step(1));
-        let d: Vec<f32> = sparse.ao.iter().zip(&dense.ao).map(|(a, b)| (a - b).abs()).collect();
-        let mean = d.iter().sum::<f32>() / d.len() as f32;
-        let within = d.iter().filter(|&&x| x <= 0.05).count() as f64 / d.len() as f64;
-        assert!(mean < 0.01 && within > 0.97, "{name}: mean {mean}, {:.1}% within 0.05", 100.0 * within);
+        let converged = guide(&scene, &cam, GuideSettings::new(128, 96).ao_step(1).ao_rays(256));
+        // Mean |error| and the share of pixels within 0.05 of the converged AO.
+        let error = |ao: &[f32]| {
+            let d: Vec<f32> = ao.iter().zip(&converged.ao).map(|(a, b)| (a - b).abs()).collect();
+            (d.iter().sum::<f32>() / d.len() as f32, d.iter().filter(|&&x| x <= 0.05).count() as f32 / d.len() as f32)
+        };
+        let ((sparse_mean, sparse_within), (dense_mean, dense_within)) = (error(&sparse.ao), error(&dense.ao));
+        assert!(
+            sparse_mean <= dense_mean + 0.004 && sparse_within >= dense_within - 0.02,
+            "{name}: sparse mean {sparse_mean}, {:.1}% within 0.05; dense mean {dense_mean}, {:.1}%",
+            100.0 * sparse_within,
+            100.0 * dense_within
+        );
     }
 }
 

@@ -1,11 +1,12 @@
 //! Ambient occlusion through the BVH: a fixed, stratified, cosine-weighted pattern of occlusion
-//! rays, evaluated on a sparse grid and upsampled with depth- and normal-aware weights.
+//! rays, evaluated on a sparse lattice and upsampled with surface-aware weights.
 //!
 //! AO(p) = (1/π) ∫ V(p, ω, R) cosθ dω, the cosine-weighted fraction of the hemisphere around the
 //! camera-facing geometric normal that is free of geometry within radius R. The same direction
 //! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
 //! noise). Pixels where surfaces meet (a neighbour on another surface within the AO radius), whose
-//! cell spans a steep change of AO, or with no neighbour on their surface are evaluated directly.
+//! cell spans a steep change of AO, or with no neighbour on their surface are retried on a lattice
+//! of half the step, evaluated only around them, and what is still left is evaluated directly.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -53,10 +54,12 @@ pub fn pattern(n: u32) -> Vec<Vec3> {
 /// AO at one point: the fraction of pattern directions unoccluded within `radius`.
 pub fn ao_at(scene: &Scene, bvh: &SceneBvh, pt: &AoPoint, dirs: &[Vec3], radius: f32) -> f32 {
     let frame = Frame::from_normal(pt.n);
+    // Every pattern direction leaves the surface on the normal's side, so all rays share one
+    // offset origin.
+    let o = offset_origin(pt.p, pt.p_error, pt.n, pt.n);
     let mut open = 0u32;
     for d in dirs {
         let w = frame.to_world(*d);
-        let o = offset_origin(pt.p, pt.p_error, pt.n, w);
         if !bvh.occluded(scene, o, w, radius) {
             open += 1;
         }
@@ -64,8 +67,83 @@ pub fn ao_at(scene: &Scene, bvh: &SceneBvh, pt: &AoPoint, dirs: &[Vec3], radius:
     open as f32 / dirs.len() as f32
 }
 
-/// Computes AO for a `width`×`height` image of optional points, evaluating directly on every
-/// `step`-th pixel and interpolating between those where the surfaces agree.
+/// A lattice of AO evaluation points every `step` pixels (clamped to the image), over which
+/// the pixels between are interpolated.
+struct Lattice {
+    w: usize,
+    h: usize,
+    step: usize,
+    gw: usize,
+}
+
+impl Lattice {
+    fn new(w: usize, h: usize, step: usize) -> Self {
+        Lattice { w, h, step, gw: w.div_ceil(step) + 1 }
+    }
+    /// Number of lattice points.
+    fn len(&self) -> usize {
+        self.gw * (self.h.div_ceil(self.step) + 1)
+    }
+    /// The pixel a lattice point sits on.
+    fn pixel(&self, g: usize) -> usize {
+        let (gx, gy) = (g % self.gw, g / self.gw);
+        (gy * self.step).min(self.h - 1) * self.w + (gx * self.step).min(self.w - 1)
+    }
+    /// The four lattice points around pixel `i`, with their bilinear weights.
+    fn corners(&self, i: usize) -> [(usize, f32); 4] {
+        let (x, y) = (i % self.w, i / self.w);
+        let (gx, gy) = (x / self.step, y / self.step);
+        let s = self.step as f32;
+        let (fx, fy) = ((x - gx * self.step) as f32 / s, (y - gy * self.step) as f32 / s);
+        let g = gy * self.gw + gx;
+        [
+            (g, (1.0 - fx) * (1.0 - fy)),
+            (g + 1, fx * (1.0 - fy)),
+            (g + self.gw, (1.0 - fx) * fy),
+            (g + self.gw + 1, fx * fy),
+        ]
+    }
+}
+
+/// Same surface: normals agree and `q` lies close to `pt`'s tangent plane (which holds along
+/// receding planes, unlike a depth comparison).
+#[inline]
+fn same_surface(q: &AoPoint, pt: &AoPoint) -> bool {
+    let d = q.p - pt.p;
+    q.n.dot(pt.n) > 0.95 && d.dot(pt.n).abs() <= TANGENT_SLACK * d.length() + 1e-6 * pt.depth
+}
+
+/// AO at `pt` interpolated from the lattice points around it, or None where that is not safe:
+/// a corner on another surface within the AO radius means the surfaces meet or nearly meet
+/// there (a crease or contact, where AO changes steeply), and corners whose AO spreads more
+/// than [`REFINE_SPREAD`] mean a steep change across the cell. (At a silhouette the other
+/// surface lies far behind and does not affect this one's AO.)
+fn interpolate(lattice: &Lattice, values: &[Option<(AoPoint, f32)>], i: usize, pt: &AoPoint, radius: f32) -> Option<f32> {
+    let (mut sum, mut wsum) = (0.0, 0.0);
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for (g, bw) in lattice.corners(i) {
+        let Some((q, ao)) = values[g] else { continue };
+        if !same_surface(&q, pt) {
+            if (q.p - pt.p).length() < radius {
+                return None;
+            }
+            continue;
+        }
+        // Bilinear weights over the corners on this pixel's surface.
+        let bw = bw.max(1e-3);
+        sum += bw * ao;
+        wsum += bw;
+        lo = lo.min(ao);
+        hi = hi.max(ao);
+    }
+    (wsum > 0.0 && hi - lo <= REFINE_SPREAD).then(|| sum / wsum)
+}
+
+/// Computes AO for a `width`×`height` image of optional points. AO is evaluated directly on a
+/// lattice every `step` pixels and interpolated between lattice points on the pixel's surface.
+/// Pixels where that is not safe go to a lattice of half the step, evaluated only where such
+/// pixels need it, and so on; what is left at step 1 is evaluated directly.
+#[allow(clippy::too_many_arguments)]
 pub fn ao_image(
     scene: &Scene,
     bvh: &SceneBvh,
@@ -77,61 +155,56 @@ pub fn ao_image(
     step: u32,
 ) -> Vec<f32> {
     let (w, h) = (width as usize, height as usize);
-    let step = step.max(1) as usize;
-    let (gw, gh) = (w.div_ceil(step) + 1, h.div_ceil(step) + 1);
-    // Sparse grid: pixel (gx·step, gy·step), clamped to the image.
-    let grid_px = |gx: usize, gy: usize| ((gx * step).min(w - 1), (gy * step).min(h - 1));
-    let grid: Vec<Option<(AoPoint, f32)>> = (0..gw * gh)
-        .into_par_iter()
-        .map(|g| {
-            let (x, y) = grid_px(g % gw, g / gw);
-            point(y * w + x).map(|pt| (pt, ao_at(scene, bvh, &pt, dirs, radius)))
-        })
+    let eval = |pt: &AoPoint| ao_at(scene, bvh, pt, dirs, radius);
+    let mut ao = vec![1.0f32; w * h];
+    // Directly evaluated pixels (NaN: not yet), so that finer lattices reuse coarser points.
+    let mut exact = vec![f32::NAN; w * h];
+    let mut pending: Vec<usize> = (0..w * h).filter(|&i| point(i).is_some()).collect();
+    let mut level = step.max(1) as usize;
+    while level > 1 && !pending.is_empty() {
+        let lattice = Lattice::new(w, h, level);
+        let mut needed = vec![false; lattice.len()];
+        for &i in &pending {
+            for (g, _) in lattice.corners(i) {
+                needed[g] = true;
+            }
+        }
+        let values: Vec<Option<(AoPoint, f32)>> = needed
+            .par_iter()
+            .enumerate()
+            .map(|(g, &need)| {
+                let px = lattice.pixel(g);
+                let pt = point(px).filter(|_| need)?;
+                Some((pt, if exact[px].is_nan() { eval(&pt) } else { exact[px] }))
+            })
+            .collect();
+        for (g, v) in values.iter().enumerate() {
+            if let Some((_, a)) = v {
+                exact[lattice.pixel(g)] = *a;
+            }
+        }
+        let results: Vec<Option<f32>> = pending
+            .par_iter()
+            .map(|&i| point(i).and_then(|pt| interpolate(&lattice, &values, i, &pt, radius)))
+            .collect();
+        let mut left = Vec::new();
+        for (&i, r) in pending.iter().zip(results) {
+            match r {
+                Some(a) => ao[i] = a,
+                None => left.push(i),
+            }
+        }
+        pending = left;
+        level /= 2;
+    }
+    let direct: Vec<f32> = pending
+        .par_iter()
+        .map(|&i| if exact[i].is_nan() { point(i).map_or(1.0, |pt| eval(&pt)) } else { exact[i] })
         .collect();
-    // Same surface: normals agree and the neighbour lies close to this point's tangent plane
-    // (which holds along receding planes, unlike a depth comparison).
-    let same = |q: &AoPoint, pt: &AoPoint| {
-        let d = q.p - pt.p;
-        q.n.dot(pt.n) > 0.95 && d.dot(pt.n).abs() <= TANGENT_SLACK * d.length() + 1e-6 * pt.depth
-    };
-    (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let Some(pt) = point(i) else { return 1.0 };
-            let (x, y) = (i % w, i / w);
-            let (gx, gy) = (x / step, y / step);
-            let (fx, fy) = ((x - gx * step) as f32 / step as f32, (y - gy * step) as f32 / step as f32);
-            // Bilinear over the four surrounding grid points that lie on this pixel's surface.
-            let mut sum = 0.0;
-            let mut wsum = 0.0;
-            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            // A corner on another surface within the AO radius means the surfaces meet or nearly
-            // meet here (a crease or contact), where AO changes steeply.
-            let mut touching = false;
-            for (dx, dy, bw) in
-                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
-            {
-                if let Some((q, ao)) = grid[(gy + dy) * gw + gx + dx] {
-                    if !same(&q, &pt) {
-                        touching |= (q.p - pt.p).length() < radius;
-                    } else {
-                        let bw = bw.max(1e-3);
-                        sum += bw * ao;
-                        wsum += bw;
-                        lo = lo.min(ao);
-                        hi = hi.max(ao);
-                    }
-                }
-            }
-            // Interpolate from the corners on this surface where AO varies gently. Where surfaces
-            // meet, or AO changes steeply across the cell, evaluate this pixel directly. (At a
-            // silhouette the other surface lies far behind and does not affect this one's AO.)
-            if !touching && wsum > 0.0 && hi - lo <= REFINE_SPREAD {
-                return sum / wsum;
-            }
-            ao_at(scene, bvh, &pt, dirs, radius)
-        })
-        .collect()
+    for (&i, a) in pending.iter().zip(direct) {
+        ao[i] = a;
+    }
+    ao
 }
 
 #[cfg(test)]

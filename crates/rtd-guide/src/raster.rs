@@ -168,15 +168,20 @@ where
         let y0 = ty as u32 * TILE;
         let th = TILE.min(height - y0) as usize;
         let mut depth = vec![f32::NEG_INFINITY; TILE as usize * TILE as usize * SAMPLES];
+        let mut cover = vec![Cover::NONE; TILE as usize * TILE as usize * SAMPLES];
         let mut hits: Vec<Option<SampleHit>> = vec![None; TILE as usize * TILE as usize * SAMPLES];
         for tx in 0..tiles_x {
             let x0 = tx * TILE;
             let tw = TILE.min(width - x0) as usize;
             let n = tw * th * SAMPLES;
             depth[..n].fill(f32::NEG_INFINITY);
-            hits[..n].fill(None);
+            cover[..n].fill(Cover::NONE);
             for &i in &bins[(ty as u32 * tiles_x + tx) as usize] {
-                raster_tri(scene, &tris[i as usize], x0, y0, tw, th, &offsets, &mut depth[..n], &mut hits[..n]);
+                raster_tri(scene, &tris, i, x0, y0, tw, th, &offsets, &mut depth[..n], &mut cover[..n]);
+            }
+            // Barycentrics only for the samples' final triangles.
+            for (hit, c) in hits[..n].iter_mut().zip(&cover[..n]) {
+                *hit = (c.tri != u32::MAX).then(|| tris[c.tri as usize].hit(c.e0, c.e1));
             }
             for (k, px) in hits[..n].chunks(SAMPLES).enumerate() {
                 rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(px);
@@ -186,19 +191,45 @@ where
     out
 }
 
-/// Rasterises one triangle into a tile's sample buffers (greater depth key wins; ties keep the first).
+/// What a sample sees while its tile is drawn: the screen triangle and its edge functions e0, e1.
+#[derive(Debug, Clone, Copy)]
+struct Cover {
+    tri: u32,
+    e0: f32,
+    e1: f32,
+}
+
+impl Cover {
+    const NONE: Cover = Cover { tri: u32::MAX, e0: 0.0, e1: 0.0 };
+}
+
+impl ScreenTri {
+    /// The hit at screen-space barycentrics (e0, e1, 1 − e0 − e1), with perspective-correct
+    /// barycentrics in the original triangle.
+    #[inline]
+    fn hit(&self, e0: f32, e1: f32) -> SampleHit {
+        let (w0, w1, w2) = (e0 * self.w[0], e1 * self.w[1], (1.0 - e0 - e1) * self.w[2]);
+        let bary = (self.b[0] * w0 + self.b[1] * w1 + self.b[2] * w2) / (w0 + w1 + w2);
+        SampleHit { triangle: self.triangle, bary }
+    }
+}
+
+/// Rasterises screen triangle `index` into a tile's sample buffers (greater depth key wins; ties
+/// keep the first).
 #[allow(clippy::too_many_arguments)]
 fn raster_tri(
     scene: &Scene,
-    t: &ScreenTri,
+    tris: &[ScreenTri],
+    index: u32,
     x0: u32,
     y0: u32,
     tw: usize,
     th: usize,
     offsets: &[Vec2; SAMPLES],
     depth: &mut [f32],
-    hits: &mut [Option<SampleHit>],
+    cover: &mut [Cover],
 ) {
+    let t = &tris[index as usize];
     let [a, b, c] = t.v;
     // Edge functions as planes e(p) = A·(x − x0) + B·(y − y0) + C over the tile, set up in f64
     // (clipped vertices can project far off screen) and normalised by twice the signed area:
@@ -264,14 +295,12 @@ fn raster_tri(
                 if !(key > depth[k]) {
                     continue;
                 }
-                // Perspective-correct weights of the three screen vertices.
-                let (w0, w1, w2) = (e0 * t.w[0], e1 * t.w[1], e2 * t.w[2]);
-                let sum = w0 + w1 + w2;
-                if !(sum > 0.0) {
+                // Perspective-correct weights must be positive (the sample is in front of the eye).
+                if !(e0 * t.w[0] + e1 * t.w[1] + e2 * t.w[2] > 0.0) {
                     continue;
                 }
-                let bary = (t.b[0] * w0 + t.b[1] * w1 + t.b[2] * w2) / sum;
                 if let Some(cut) = cutoff {
+                    let bary = t.hit(e0, e1).bary;
                     let tri = &scene.triangles[t.triangle as usize];
                     let uv = tri.uv[0] * bary.x + tri.uv[1] * bary.y + tri.uv[2] * bary.z;
                     if material.alpha(&scene.textures, uv) < cut {
@@ -279,7 +308,7 @@ fn raster_tri(
                     }
                 }
                 depth[k] = key;
-                hits[k] = Some(SampleHit { triangle: t.triangle, bary });
+                cover[k] = Cover { tri: index, e0, e1 };
             }
         }
     }

@@ -29,10 +29,22 @@ pub struct Texture {
     pub nearest: bool,
 }
 
+/// ⌊x⌋ as an integer (saturating), without a call into libm's `floor`.
+#[inline]
+fn floor(x: f64) -> i64 {
+    let t = x as i64;
+    // Truncation rounds negative non-integers up; step back one.
+    t.saturating_sub(((t as f64) > x) as i64)
+}
+
 /// Maps an integer texel coordinate into [0, n) by the wrap mode.
 #[inline]
 fn wrap_index(i: i64, n: u32, wrap: Wrap) -> usize {
     let n = n as i64;
+    // Inside the texture every mode is the identity (and this skips the division).
+    if (0..n).contains(&i) {
+        return i as usize;
+    }
     (match wrap {
         Wrap::Repeat => i.rem_euclid(n),
         Wrap::Clamp => i.clamp(0, n - 1),
@@ -53,10 +65,9 @@ impl Texture {
         Texture { width: 1, height: 1, texels: vec![v], wrap_u: Wrap::Repeat, wrap_v: Wrap::Repeat, nearest: true }
     }
 
+    /// The texel at wrapped indices (`xi` < width, `yi` < height).
     #[inline]
-    fn texel(&self, x: i64, y: i64) -> Vec4 {
-        let xi = wrap_index(x, self.width, self.wrap_u);
-        let yi = wrap_index(y, self.height, self.wrap_v);
+    fn texel(&self, xi: usize, yi: usize) -> Vec4 {
         self.texels[yi * self.width as usize + xi]
     }
 
@@ -67,14 +78,18 @@ impl Texture {
         // Texel-centre convention: texel i covers [i, i+1) / n.
         let x = (uv.x as f64) * self.width as f64 - 0.5;
         let y = (uv.y as f64) * self.height as f64 - 0.5;
+        let (wu, wv) = (|i| wrap_index(i, self.width, self.wrap_u), |i| wrap_index(i, self.height, self.wrap_v));
         if self.nearest {
-            return self.texel((x + 0.5).floor() as i64, (y + 0.5).floor() as i64);
+            return self.texel(wu(floor(x + 0.5)), wv(floor(y + 0.5)));
         }
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let a = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
-        let b = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
+        let (x0, y0) = (floor(x), floor(y));
+        // Fractional parts (0 beyond ±2⁶³, where floor saturated and every double is an integer).
+        let frac = |v: f64, i: i64| Some((v - i as f64) as f32).filter(|f| (0.0..1.0).contains(f)).unwrap_or(0.0);
+        let (fx, fy) = (frac(x, x0), frac(y, y0));
+        let (xa, xb) = (wu(x0), wu(x0.saturating_add(1)));
+        let (ya, yb) = (wv(y0), wv(y0.saturating_add(1)));
+        let a = self.texel(xa, ya).lerp(self.texel(xb, ya), fx);
+        let b = self.texel(xa, yb).lerp(self.texel(xb, yb), fx);
         a.lerp(b, fy)
     }
 
@@ -118,5 +133,17 @@ mod tests {
         assert_eq!(wrap_index(-1, 4, Wrap::Mirror), 0);
         assert_eq!(wrap_index(5, 4, Wrap::Mirror), 2);
         assert_eq!(wrap_index(9, 4, Wrap::Clamp), 3);
+    }
+
+    #[test]
+    fn integer_floor_matches_f64_floor() {
+        for x in [0.0, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999_999_999, -2.000_000_1, 1e15 + 0.5, -1e15 - 0.5, 4096.0 * 1e6] {
+            assert_eq!(floor(x), x.floor() as i64, "{x}");
+        }
+        // Far outside the i64 range it saturates, and the neighbour index does not overflow.
+        assert_eq!(floor(1e300), i64::MAX);
+        assert_eq!(floor(-1e300), i64::MIN);
+        let t = checker();
+        assert!(t.sample(Vec2::new(3e38, -3e38)).is_finite());
     }
 }
