@@ -156,19 +156,30 @@ pub fn ao_image(
 ) -> Vec<f32> {
     let (w, h) = (width as usize, height as usize);
     let eval = |pt: &AoPoint| ao_at(scene, bvh, pt, dirs, radius);
-    let mut ao = vec![1.0f32; w * h];
+    // AO per pixel; NaN: not known yet (1 where no surface is seen).
+    let mut ao: Vec<f32> = (0..w * h).into_par_iter().map(|i| if point(i).is_some() { f32::NAN } else { 1.0 }).collect();
     // Directly evaluated pixels (NaN: not yet), so that finer lattices reuse coarser points.
     let mut exact = vec![f32::NAN; w * h];
-    let mut pending: Vec<usize> = (0..w * h).filter(|&i| point(i).is_some()).collect();
     let mut level = step.max(1) as usize;
-    while level > 1 && !pending.is_empty() {
+    let mut first = true;
+    while level > 1 {
         let lattice = Lattice::new(w, h, level);
-        let mut needed = vec![false; lattice.len()];
-        for &i in &pending {
-            for (g, _) in lattice.corners(i) {
-                needed[g] = true;
+        // The first lattice is evaluated everywhere; finer ones only around pixels still unknown.
+        let needed = if first {
+            vec![true; lattice.len()]
+        } else {
+            let pending: Vec<usize> = (0..w * h).into_par_iter().filter(|&i| ao[i].is_nan()).collect();
+            if pending.is_empty() {
+                break;
             }
-        }
+            let mut needed = vec![false; lattice.len()];
+            for &i in &pending {
+                for (g, _) in lattice.corners(i) {
+                    needed[g] = true;
+                }
+            }
+            needed
+        };
         let values: Vec<Option<(AoPoint, f32)>> = needed
             .par_iter()
             .enumerate()
@@ -183,27 +194,18 @@ pub fn ao_image(
                 exact[lattice.pixel(g)] = *a;
             }
         }
-        let results: Vec<Option<f32>> = pending
-            .par_iter()
-            .map(|&i| point(i).and_then(|pt| interpolate(&lattice, &values, i, &pt, radius)))
-            .collect();
-        let mut left = Vec::new();
-        for (&i, r) in pending.iter().zip(results) {
-            match r {
-                Some(a) => ao[i] = a,
-                None => left.push(i),
+        ao.par_iter_mut().enumerate().filter(|(_, a)| a.is_nan()).for_each(|(i, a)| {
+            if let Some(v) = point(i).and_then(|pt| interpolate(&lattice, &values, i, &pt, radius)) {
+                *a = v;
             }
-        }
-        pending = left;
+        });
         level /= 2;
+        first = false;
     }
-    let direct: Vec<f32> = pending
-        .par_iter()
-        .map(|&i| if exact[i].is_nan() { point(i).map_or(1.0, |pt| eval(&pt)) } else { exact[i] })
-        .collect();
-    for (&i, a) in pending.iter().zip(direct) {
-        ao[i] = a;
-    }
+    // What is left is evaluated directly.
+    ao.par_iter_mut().enumerate().filter(|(_, a)| a.is_nan()).for_each(|(i, a)| {
+        *a = if exact[i].is_nan() { point(i).map_or(1.0, |pt| eval(&pt)) } else { exact[i] };
+    });
     ao
 }
 

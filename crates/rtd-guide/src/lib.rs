@@ -185,10 +185,10 @@ impl GuidePass {
             settings.ao_radius.unwrap_or(if bounds.is_empty() { 1.0 } else { 0.1 * bounds.diagonal().length() });
         let dirs = pattern(settings.ao_rays);
         let ao = ao::ao_image(scene, bvh, |i| shaded[i].centre, w, h, &dirs, radius, settings.ao_step);
-        let albedo = HdrImage::from_pixels(w, h, shaded.iter().map(|s| s.albedo).collect());
-        let normal = HdrImage::from_pixels(w, h, shaded.iter().map(|s| s.normal).collect());
-        let depth = shaded.iter().map(|s| s.depth).collect();
-        let guide = HdrImage::from_pixels(w, h, albedo.pixels.iter().zip(&ao).map(|(a, o)| *a * *o).collect());
+        let albedo = HdrImage::from_pixels(w, h, shaded.par_iter().map(|s| s.albedo).collect());
+        let normal = HdrImage::from_pixels(w, h, shaded.par_iter().map(|s| s.normal).collect());
+        let depth = shaded.par_iter().map(|s| s.depth).collect();
+        let guide = HdrImage::from_pixels(w, h, albedo.pixels.par_iter().zip(&ao).map(|(a, o)| *a * *o).collect());
         GuidePass { albedo, normal, depth, ao, guide, seconds: start.elapsed().as_secs_f64() }
     }
 

@@ -163,7 +163,8 @@ where
         }
     }
     // One job per row of tiles, writing straight into its rows of the output.
-    let mut out = vec![T::default(); width as usize * height as usize];
+    // (Filled in parallel: a serial fill of a large frame costs as much as a share of the raster.)
+    let mut out: Vec<T> = (0..width as usize * height as usize).into_par_iter().map(|_| T::default()).collect();
     out.par_chunks_mut(width as usize * TILE as usize).enumerate().for_each(|(ty, rows)| {
         let y0 = ty as u32 * TILE;
         let th = TILE.min(height - y0) as usize;
