@@ -118,7 +118,13 @@ fn same_surface(q: &AoPoint, pt: &AoPoint) -> bool {
 /// there (a crease or contact, where AO changes steeply), and corners whose AO spreads more
 /// than [`REFINE_SPREAD`] mean a steep change across the cell. (At a silhouette the other
 /// surface lies far behind and does not affect this one's AO.)
-fn interpolate(lattice: &Lattice, values: &[Option<(AoPoint, f32)>], i: usize, pt: &AoPoint, radius: f32) -> Option<f32> {
+fn interpolate(
+    lattice: &Lattice,
+    values: &[Option<(AoPoint, f32)>],
+    i: usize,
+    pt: &AoPoint,
+    radius: f32,
+) -> Option<f32> {
     let (mut sum, mut wsum) = (0.0, 0.0);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for (g, bw) in lattice.corners(i) {
@@ -157,7 +163,8 @@ pub fn ao_image(
     let (w, h) = (width as usize, height as usize);
     let eval = |pt: &AoPoint| ao_at(scene, bvh, pt, dirs, radius);
     // AO per pixel; NaN: not known yet (1 where no surface is seen).
-    let mut ao: Vec<f32> = (0..w * h).into_par_iter().map(|i| if point(i).is_some() { f32::NAN } else { 1.0 }).collect();
+    let mut ao: Vec<f32> =
+        (0..w * h).into_par_iter().map(|i| if point(i).is_some() { f32::NAN } else { 1.0 }).collect();
     // Directly evaluated pixels (NaN: not yet), so that finer lattices reuse coarser points.
     let mut exact = vec![f32::NAN; w * h];
     let mut level = step.max(1) as usize;
