@@ -170,7 +170,6 @@ where
         let th = TILE.min(height - y0) as usize;
         let mut depth = vec![f32::NEG_INFINITY; TILE as usize * TILE as usize * SAMPLES];
         let mut cover = vec![Cover::NONE; TILE as usize * TILE as usize * SAMPLES];
-        let mut hits: Vec<Option<SampleHit>> = vec![None; TILE as usize * TILE as usize * SAMPLES];
         for tx in 0..tiles_x {
             let x0 = tx * TILE;
             let tw = TILE.min(width - x0) as usize;
@@ -180,12 +179,13 @@ where
             for &i in &bins[(ty as u32 * tiles_x + tx) as usize] {
                 raster_tri(scene, &tris, i, x0, y0, tw, th, &offsets, &mut depth[..n], &mut cover[..n]);
             }
-            // Barycentrics only for the samples' final triangles.
-            for (hit, c) in hits[..n].iter_mut().zip(&cover[..n]) {
-                *hit = (c.tri != u32::MAX).then(|| tris[c.tri as usize].hit(c.e0, c.e1));
-            }
-            for (k, px) in hits[..n].chunks(SAMPLES).enumerate() {
-                rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(px);
+            for (k, px) in cover[..n].chunks(SAMPLES).enumerate() {
+                // Barycentrics only for the samples' final triangles.
+                let hits: [Option<SampleHit>; SAMPLES] = std::array::from_fn(|s| {
+                    let c = px[s];
+                    (c.tri != u32::MAX).then(|| tris[c.tri as usize].hit(c.e0, c.e1))
+                });
+                rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(&hits);
             }
         }
     });
