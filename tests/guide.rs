@@ -236,3 +236,43 @@ fn orthographic_guide_matches_path_tracer_depth() {
     let _ = Vec2::ZERO;
     let _ = RenderScene::new;
 }
+
+/// Emitters and an emitting environment are white in the albedo layer, in the guide pass and in
+/// the path tracer's AOV alike (a denoiser dividing colour by albedo then leaves light sources
+/// as they are), and a black environment stays black.
+#[test]
+fn emitters_and_an_emitting_environment_have_white_albedo() {
+    let mut s = Scene::default();
+    s.materials.push(white());
+    let mut light = material(Vec3::ZERO, 1.0, 0.0, 0.0);
+    light.emissive = Vec3::new(5.0, 4.0, 3.0);
+    s.materials.push(light);
+    let b = 100.0;
+    quad(&mut s, Vec3::new(-b, 0.0, b), Vec3::new(b, 0.0, b), Vec3::new(b, 0.0, -b), Vec3::new(-b, 0.0, -b), 0);
+    // An emitting panel standing on the floor, facing the camera.
+    quad(
+        &mut s,
+        Vec3::new(-1.0, 0.5, 0.0),
+        Vec3::new(1.0, 0.5, 0.0),
+        Vec3::new(1.0, 2.5, 0.0),
+        Vec3::new(-1.0, 2.5, 0.0),
+        1,
+    );
+    let cam = Camera::look_at(Vec3::new(0.0, 1.5, 6.0), Vec3::new(0.0, 1.5, 0.0), 50.0);
+    let (w, h) = (48, 36);
+    let (panel, sky, floor) = ((w / 2 + h / 2 * w) as usize, (w / 2) as usize, (w / 2 + (h - 1) * w) as usize);
+    for (env, sky_albedo) in [(Vec3::ZERO, 0.0), (Vec3::splat(0.5), 1.0)] {
+        s.environment = rtd::scene::Environment::Constant(env);
+        let g = guide(&s, &cam, GuideSettings::new(w as u32, h as u32));
+        let film = render(s.clone(), cam.clone(), RenderSettings::new(w as u32, h as u32).seed(3).max_depth(1), 16);
+        let pt = film.albedo();
+        for (label, i, want) in [("panel", panel, 1.0), ("sky", sky, sky_albedo), ("floor", floor, 0.8)] {
+            assert_eq!(g.albedo.pixels[i], Vec3::splat(want), "guide, {label}, environment {env}");
+            assert!(
+                (pt.pixels[i] - Vec3::splat(want)).abs().max_element() < 1e-6,
+                "path tracer, {label}: {}",
+                pt.pixels[i]
+            );
+        }
+    }
+}

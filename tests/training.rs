@@ -148,3 +148,24 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();
     assert!(err.contains("model.json") && err.contains("another network"), "{err}");
 }
+
+/// `refresh_guides` re-renders exactly the guide layers of every view and keeps the rest.
+#[test]
+fn refreshing_guides_rewrites_guide_layers_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = tiny_dataset(dir.path());
+    let file = dir.path().join(&manifest.views[0].file);
+    let original = rtd::image::read_exr(&file).unwrap();
+    // Stale guide layers, as a dataset made by an older guide pass has.
+    let mut stale = original.clone();
+    for name in ["albedo.R", "guide.G", "ao.Y", "depth.Z", "normal.X"] {
+        stale.push(name, vec![0.123; (stale.width * stale.height) as usize]);
+    }
+    rtd::image::write_exr(&file, &stale).unwrap();
+    let n = rtd::train::dataset::refresh_guides(dir.path(), &Quiet).unwrap();
+    assert_eq!(n, manifest.views.len());
+    let refreshed = rtd::image::read_exr(&file).unwrap();
+    for name in ["albedo.R", "guide.G", "ao.Y", "depth.Z", "normal.X", "noisy8.R", "reference.B"] {
+        assert_eq!(refreshed.get(name), original.get(name), "{name}");
+    }
+}

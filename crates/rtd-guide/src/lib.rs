@@ -93,6 +93,12 @@ fn ao_point(camera: &Camera, t: &rtd_scene::Triangle, b: Vec3, p: Vec3, ng: Vec3
     AoPoint { p, p_error: Surface::error_bound(t, b), n, depth }
 }
 
+/// True if the material's guide values vary over a triangle with its textures.
+#[inline]
+fn has_textures(m: &rtd_scene::Material) -> bool {
+    m.base_color_texture.is_some() || m.normal_texture.is_some() || m.emissive_texture.is_some()
+}
+
 /// Fast path for the common pixel: every sample on one untextured triangle with flat normals.
 /// Albedo and normal are then constant over the pixel, so one evaluation is exact.
 #[inline]
@@ -103,7 +109,7 @@ fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<ra
     }
     let t = &scene.triangles[first.triangle as usize];
     let m = &scene.materials[t.material as usize];
-    if m.base_color_texture.is_some() || m.normal_texture.is_some() || t.n[0] != t.n[1] || t.n[1] != t.n[2] {
+    if has_textures(m) || t.n[0] != t.n[1] || t.n[1] != t.n[2] {
         return None;
     }
     let ng = front[first.triangle as usize];
@@ -123,7 +129,8 @@ fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<ra
 /// The guide layers of one view.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GuidePass {
-    /// Base colour × texture (tent-filtered).
+    /// Base colour × texture (tent-filtered); white where an emitter or an emitting environment
+    /// is seen.
     pub albedo: HdrImage,
     /// World-space shading normal (tent-filtered, not renormalised at edges).
     pub normal: HdrImage,
@@ -156,6 +163,9 @@ impl GuidePass {
         let n = raster::SAMPLES;
         let inv = 1.0 / n as f32;
         let front: Vec<Vec3> = scene.triangles.par_iter().map(|t| t.front_normal()).collect();
+        // A sample that sees nothing sees the environment: white albedo if it emits, like an
+        // emitter's (and like the path tracer's albedo AOV).
+        let miss_albedo = if scene.environment.is_black() { Vec3::ZERO } else { Vec3::ONE };
         // Shade every sample with the renderer's surface code; keep the centre sample for AO.
         let shaded: Vec<Shaded> = raster::rasterize(scene, camera, w, h, |px| {
             let mut out = Shaded::default();
@@ -163,7 +173,10 @@ impl GuidePass {
                 return fast;
             }
             for (s, hit) in px.iter().enumerate() {
-                let Some(hit) = hit else { continue };
+                let Some(hit) = hit else {
+                    out.albedo += miss_albedo * inv;
+                    continue;
+                };
                 let t = &scene.triangles[hit.triangle as usize];
                 let b = hit.bary;
                 let m = &scene.materials[t.material as usize];

@@ -18,7 +18,8 @@ use crate::surface::Surface;
 /// First-hit auxiliary values of one sample.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Aov {
-    /// Base colour at the first hit (glass and mirrors: their own reflectance colour).
+    /// Base colour at the first hit (glass and mirrors: their own reflectance colour; emitters
+    /// and an emitting environment: white).
     pub albedo: Vec3,
     /// World-space shading normal at the first hit.
     pub normal: Vec3,
@@ -31,7 +32,8 @@ pub struct Aov {
 pub struct PathResult {
     /// Radiance carried to the camera.
     pub radiance: Vec3,
-    /// First-hit AOVs (zero if the camera ray escaped).
+    /// First-hit AOVs (zero if the camera ray escaped, but for a white albedo where the
+    /// environment emits).
     pub aov: Aov,
     /// Rays traced (closest-hit and shadow).
     pub rays: u32,
@@ -66,6 +68,11 @@ impl Integrator<'_> {
         loop {
             rays += 1;
             let Some(hit) = bvh.intersect(scene, o, d, f32::INFINITY) else {
+                // A camera ray that escapes sees the environment: a light, white in the albedo
+                // AOV as emitters are (see `Material::albedo`), unless the environment is black.
+                if depth == 0 && lights.has_environment() {
+                    aov.albedo = Vec3::ONE;
+                }
                 let le = scene.environment.radiance(d);
                 if le != Vec3::ZERO {
                     let w = if specular {
@@ -81,7 +88,9 @@ impl Integrator<'_> {
             let wo = -d;
             let material = &scene.materials[scene.triangles[hit.triangle as usize].material as usize];
             if depth == 0 {
-                aov = Aov { albedo: s.params.base_color, normal: s.ns, depth: (s.p - origin).length() };
+                // Emitters record white albedo, as `Material::albedo` does.
+                let albedo = if s.params.emission != Vec3::ZERO { Vec3::ONE } else { s.params.base_color };
+                aov = Aov { albedo, normal: s.ns, depth: (s.p - origin).length() };
             }
             // Emission, front side only unless double-sided.
             if s.params.emission != Vec3::ZERO && (material.double_sided || wo.dot(s.ng) > 0.0) {

@@ -150,6 +150,11 @@ impl LightSet {
         }
     }
 
+    /// True if the environment emits (it is then one of the lights).
+    pub fn has_environment(&self) -> bool {
+        self.env_index.is_some()
+    }
+
     /// Solid-angle pdf (with selection) that light sampling picks direction `dir` towards the environment.
     #[inline]
     pub fn environment_pdf(&self, env: &Environment, dir: Vec3) -> f32 {

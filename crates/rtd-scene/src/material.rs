@@ -176,9 +176,25 @@ impl Material {
         }
     }
 
-    /// The albedo that the AOVs and the guide pass record: base colour × texture, in [0,1].
+    /// True if the surface emits at `uv` (emissive factor × emissive texture has a positive channel).
+    #[inline]
+    pub fn emits_at(&self, textures: &[Texture], uv: Vec2) -> bool {
+        self.is_emissive()
+            && self
+                .emissive_texture
+                .as_ref()
+                .is_none_or(|t| (self.emissive * t.sample(textures, uv).xyz()).max_element() > 0.0)
+    }
+
+    /// The albedo that the AOVs and the guide pass record: base colour × texture in [0,1], or
+    /// white where the surface emits. A light's radiance is not reflected light, so a denoiser
+    /// that divides colour by albedo must leave it as it is; with its base colour (often black)
+    /// it would be divided by ~0 and its edges would bleed into the surfaces around it.
     #[inline]
     pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+        if self.emits_at(textures, uv) {
+            return Vec3::ONE;
+        }
         clamp_color(self.base_rgba(textures, uv).xyz())
     }
 
@@ -245,6 +261,15 @@ fn clamp_color(v: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn emitters_record_white_albedo() {
+        let mut m = Material { base_color: Vec4::new(0.2, 0.4, 0.6, 1.0), ..Material::default() };
+        assert_eq!(m.albedo(&[], Vec2::ZERO), Vec3::new(0.2, 0.4, 0.6));
+        m.emissive = Vec3::new(0.0, 3.0, 0.0);
+        assert!(m.emits_at(&[], Vec2::ZERO));
+        assert_eq!(m.albedo(&[], Vec2::ZERO), Vec3::ONE);
+    }
 
     #[test]
     fn texture_transform_matches_spec_example() {

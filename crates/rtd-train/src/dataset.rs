@@ -280,6 +280,40 @@ pub fn generate_dataset(dir: &Path, options: &DatasetOptions, progress: &dyn Pro
     Ok(manifest)
 }
 
+/// Re-renders the guide layers (`guide`, `albedo`, `normal`, `depth`, `ao`) of every view of
+/// the dataset in `dir` with the current guide pass, in place, and leaves the noisy renders and
+/// references as they are: for when the guide pass changes but the path tracer does not. Each
+/// view is rewritten whole (temporary file, then rename), so an interruption keeps every view
+/// either old or new; rerunning redoes them all. Returns the number of views rewritten.
+pub fn refresh_guides(dir: &Path, progress: &dyn Progress) -> Result<usize, TrainError> {
+    let manifest = Manifest::load(dir)?;
+    progress.start(manifest.views.len() as u64, "guides");
+    let mut done = 0;
+    let mut by_scene: Vec<&ViewRecord> = manifest.views.iter().collect();
+    by_scene.sort_by_key(|v| (v.scene, v.view));
+    for group in by_scene.chunk_by(|a, b| a.scene == b.scene) {
+        let path = dir.join("scenes").join(format!("scene{:04}.gltf", group[0].scene));
+        let rs = RenderScene::new(rtd_scene::load_scene(&path)?);
+        for record in group {
+            if progress.cancelled() {
+                return Ok(done);
+            }
+            let file = view_path(dir, record);
+            let mut layers = rtd_image::read_exr(&file)?;
+            let cam =
+                rs.scene.cameras.get(record.view).cloned().ok_or_else(|| {
+                    TrainError::msg(&path, format!("has no camera {} for {}", record.view, record.file))
+                })?;
+            let guide = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(layers.width, layers.height))?;
+            guide.add_to(&mut layers);
+            rtd_image::write_exr(&file, &layers)?;
+            done += 1;
+            progress.inc(1);
+        }
+    }
+    Ok(done)
+}
+
 /// The mean of the even-numbered and of the odd-numbered half renders.
 fn mean_of_halves(halves: &[HdrImage]) -> (HdrImage, HdrImage) {
     let pick = |parity: usize| {

@@ -278,6 +278,10 @@ pub struct DatagenArgs {
     /// Reference samples per pixel (doubled where the reference stays noisy).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
     pub reference_spp: u32,
+    /// Instead of generating: re-render the guide layers of the existing dataset's views in place
+    /// with the current guide pass (noisy renders and references are kept).
+    #[arg(long)]
+    pub refresh_guides: bool,
     /// Hide the progress bar.
     #[arg(long, short)]
     pub quiet: bool,

@@ -1,7 +1,7 @@
 //! `rtd datagen` and `rtd train`: thin wrappers over `rtd_train`.
 
 use rtd_denoise::DenoiserConfig;
-use rtd_train::dataset::{generate_dataset, DatasetOptions};
+use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions};
 use rtd_train::train::{TrainOptions, TrainState};
 
 use crate::args::{DatagenArgs, TrainArgs, VariantArg};
@@ -9,6 +9,16 @@ use crate::progress::TaskBar;
 
 /// Runs `rtd datagen`.
 pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
+    if args.refresh_guides {
+        let bar = TaskBar::new(args.quiet);
+        let n = refresh_guides(&args.output, &bar)?;
+        bar.finish();
+        if bar_cancelled(&bar) {
+            anyhow::bail!("interrupted after {n} views: rerun the same command to refresh them all");
+        }
+        eprintln!("{}: guide layers of {n} views re-rendered", args.output.display());
+        return Ok(());
+    }
     let options = DatasetOptions::default()
         .seed(args.seed)
         .scenes(args.scenes)
