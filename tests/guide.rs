@@ -3,10 +3,10 @@
 mod common;
 
 use common::*;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use rtd::guide::{ao_at, pattern, AoPoint, GuidePass, GuideSettings};
 use rtd::render::{RenderScene, RenderSettings, SceneBvh};
-use rtd::scene::{Camera, Material, Projection, Scene};
+use rtd::scene::{Camera, Material, Projection, Scene, Texture, TextureRef, Triangle, Wrap};
 
 fn guide(scene: &Scene, cam: &Camera, settings: GuideSettings) -> GuidePass {
     let bvh = SceneBvh::build(scene);
@@ -275,4 +275,40 @@ fn emitters_and_an_emitting_environment_have_white_albedo() {
             );
         }
     }
+}
+
+/// A texture far finer than a pixel (a one-texel checker, about 9 texels per pixel, the floor
+/// seen obliquely) comes out of the guide as its mean, as the path tracer's many samples per
+/// pixel average it: 9 point samples would alias it into a pattern.
+#[test]
+fn textures_finer_than_a_pixel_are_averaged_not_aliased() {
+    let n = 64;
+    let texels = (0..n * n).map(|i| Vec4::splat(((i % n + i / n) % 2) as f32)).collect();
+    let mut s = Scene::default();
+    s.textures.push(Texture::new(n, n, texels, Wrap::Repeat, Wrap::Repeat, false));
+    let mut m = white();
+    m.base_color = Vec4::ONE;
+    m.base_color_texture = Some(TextureRef { texture: 0, transform: None });
+    s.materials.push(m);
+    // A 40 × 40 floor with the texture repeated every half unit.
+    let b = 20.0;
+    let corner = |x: f32, z: f32| (Vec3::new(x, 0.0, z), Vec2::new(x, z) * 2.0);
+    let c = [corner(-b, b), corner(b, b), corner(b, -b), corner(-b, -b)];
+    for [i, j, k] in [[0, 1, 2], [0, 2, 3]] {
+        s.push_triangle(Triangle {
+            p: [c[i].0, c[j].0, c[k].0],
+            n: [Vec3::Y; 3],
+            uv: [c[i].1, c[j].1, c[k].1],
+            tangent: [Vec4::ZERO; 3],
+            material: 0,
+        });
+    }
+    let cam = Camera::look_at(Vec3::new(0.0, 2.0, 4.0), Vec3::new(0.0, 0.0, -2.0), 40.0);
+    let g = guide(&s, &cam, GuideSettings::new(64, 48));
+    let floor: Vec<f32> =
+        (0..g.depth.len()).filter(|&i| g.depth[i] > 0.0).map(|i| (g.albedo.pixels[i].x - 0.5).abs()).collect();
+    assert!(floor.len() > 1000);
+    let mean = floor.iter().sum::<f32>() / floor.len() as f32;
+    let worst = floor.iter().copied().fold(0.0, f32::max);
+    assert!(mean < 0.02 && worst < 0.15, "|albedo − 0.5|: mean {mean}, worst {worst}");
 }

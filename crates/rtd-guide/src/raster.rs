@@ -39,6 +39,35 @@ pub struct SampleHit {
     pub triangle: u32,
     /// Barycentrics in the original triangle.
     pub bary: Vec3,
+    /// The screen triangle and the sample's screen-space barycentrics (for [`Footprints`]).
+    screen: u32,
+    e: Vec2,
+}
+
+/// Screen-space derivatives of the samples' barycentrics, for filtering textures over a sample's
+/// footprint; handed to the shading callback of [`rasterize`].
+pub struct Footprints<'a> {
+    tris: &'a [ScreenTri],
+}
+
+impl Footprints<'_> {
+    /// Barycentric steps across `step` pixels along screen x and along screen y at the sample:
+    /// `step` × the screen derivatives of its perspective-correct barycentrics.
+    #[inline]
+    pub fn bary_steps(&self, hit: &SampleHit, step: f32) -> [Vec3; 2] {
+        let t = &self.tris[hit.screen as usize];
+        // bary = N / D with N = Σ bᵢ eᵢ wᵢ and D = Σ eᵢ wᵢ, where the screen-space barycentrics
+        // eᵢ are affine in (x, y); so ∂bary = (∂N − bary ∂D) / D.
+        let e = [hit.e.x, hit.e.y, 1.0 - hit.e.x - hit.e.y];
+        let d: f32 = (0..3).map(|i| e[i] * t.w[i]).sum();
+        let along = |de0: f32, de1: f32| {
+            let de = [de0, de1, -de0 - de1];
+            let dn: Vec3 = (0..3).map(|i| t.b[i] * (de[i] * t.w[i])).sum();
+            let dd: f32 = (0..3).map(|i| de[i] * t.w[i]).sum();
+            (dn - hit.bary * dd) * (step / d)
+        };
+        [along(t.grad[0], t.grad[2]), along(t.grad[1], t.grad[3])]
+    }
 }
 
 /// A projected, clipped triangle.
@@ -50,6 +79,8 @@ struct ScreenTri {
     w: [f32; 3],
     /// Barycentrics of each vertex in the original triangle.
     b: [Vec3; 3],
+    /// Screen gradients of the screen-space barycentrics: ∂e0/∂x, ∂e0/∂y, ∂e1/∂x, ∂e1/∂y.
+    grad: [f32; 4],
     triangle: u32,
 }
 
@@ -121,19 +152,25 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
             if !v.iter().all(|p| p.is_finite()) {
                 continue;
             }
-            out.push(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2), triangle: i as u32 });
+            // e0 = area(p, b, c) / area(a, b, c) and e1 = area(p, c, a) / area(a, b, c) are
+            // affine in screen (x, y); their gradients (in f64: clipped vertices can be far off).
+            let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
+            let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+            let grad =
+                [(b.1 - c.1) / area, (c.0 - b.0) / area, (c.1 - a.1) / area, (a.0 - c.0) / area].map(|g| g as f32);
+            out.push(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2), grad, triangle: i as u32 });
         }
     }
     out
 }
 
 /// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
-/// see; returns the shaded pixels row-major. Tiles are independent, so `shade` runs in parallel
-/// and only per-pixel results leave a tile.
+/// see (and their [`Footprints`]); returns the shaded pixels row-major. Tiles are independent,
+/// so `shade` runs in parallel and only per-pixel results leave a tile.
 pub fn rasterize<T, F>(scene: &Scene, cam: &Camera, width: u32, height: u32, shade: F) -> Vec<T>
 where
     T: Send + Clone + Default,
-    F: Fn(&[Option<SampleHit>]) -> T + Sync,
+    F: Fn(&[Option<SampleHit>], &Footprints) -> T + Sync,
 {
     let bounds = scene.bounds();
     let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
@@ -142,6 +179,7 @@ where
     let near = (far * 1e-6).max(f32::MIN_POSITIVE);
     let tris = setup(scene, cam, width, height, near);
     let offsets = sample_offsets();
+    let footprints = Footprints { tris: &tris };
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     // Bin each triangle into the tiles its bounding box (grown by the 1-px filter radius) touches.
@@ -183,9 +221,17 @@ where
                 // Barycentrics only for the samples' final triangles.
                 let hits: [Option<SampleHit>; SAMPLES] = std::array::from_fn(|s| {
                     let c = px[s];
-                    (c.tri != u32::MAX).then(|| tris[c.tri as usize].hit(c.e0, c.e1))
+                    (c.tri != u32::MAX).then(|| {
+                        let bary = tris[c.tri as usize].bary(c.e0, c.e1);
+                        SampleHit {
+                            triangle: tris[c.tri as usize].triangle,
+                            bary,
+                            screen: c.tri,
+                            e: Vec2::new(c.e0, c.e1),
+                        }
+                    })
                 });
-                rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(&hits);
+                rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(&hits, &footprints);
             }
         }
     });
@@ -205,13 +251,12 @@ impl Cover {
 }
 
 impl ScreenTri {
-    /// The hit at screen-space barycentrics (e0, e1, 1 − e0 − e1), with perspective-correct
-    /// barycentrics in the original triangle.
+    /// Perspective-correct barycentrics in the original triangle at screen-space barycentrics
+    /// (e0, e1, 1 − e0 − e1).
     #[inline]
-    fn hit(&self, e0: f32, e1: f32) -> SampleHit {
+    fn bary(&self, e0: f32, e1: f32) -> Vec3 {
         let (w0, w1, w2) = (e0 * self.w[0], e1 * self.w[1], (1.0 - e0 - e1) * self.w[2]);
-        let bary = (self.b[0] * w0 + self.b[1] * w1 + self.b[2] * w2) / (w0 + w1 + w2);
-        SampleHit { triangle: self.triangle, bary }
+        (self.b[0] * w0 + self.b[1] * w1 + self.b[2] * w2) / (w0 + w1 + w2)
     }
 }
 
@@ -301,7 +346,7 @@ fn raster_tri(
                     continue;
                 }
                 if let Some(cut) = cutoff {
-                    let bary = t.hit(e0, e1).bary;
+                    let bary = t.bary(e0, e1);
                     let tri = &scene.triangles[t.triangle as usize];
                     let uv = tri.uv[0] * bary.x + tri.uv[1] * bary.y + tri.uv[2] * bary.z;
                     if material.alpha(&scene.textures, uv) < cut {
@@ -341,6 +386,47 @@ mod tests {
             assert!(p.z >= -1e-6);
             let back = poly[0].0 * b.x + poly[1].0 * b.y + poly[2].0 * b.z;
             assert!((back - p).length() < 1e-6, "barycentrics must reproduce the clipped point");
+        }
+    }
+
+    #[test]
+    fn bary_steps_match_finite_differences_under_perspective() {
+        use rtd_scene::{Material, Triangle};
+        let mut scene = Scene::default();
+        scene.materials.push(Material::default());
+        // A floor triangle seen obliquely, so perspective makes the barycentrics non-affine.
+        let p = [Vec3::new(-3.0, 0.0, 1.0), Vec3::new(3.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -9.0)];
+        scene.push_triangle(Triangle {
+            p,
+            n: [Vec3::Y; 3],
+            uv: [Vec2::ZERO; 3],
+            tangent: [glam::Vec4::ZERO; 3],
+            material: 0,
+        });
+        let cam = Camera::look_at(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 0.0, -2.0), 50.0);
+        let tris = setup(&scene, &cam, 64, 64, 1e-3);
+        assert_eq!(tris.len(), 1);
+        let t = &tris[0];
+        let fp = Footprints { tris: &tris };
+        // Screen-space barycentrics of pixel (x, y) from the screen vertices.
+        let e_at = |x: f32, y: f32| {
+            let e0 = t.grad[0] * (x - t.v[2].x) + t.grad[1] * (y - t.v[2].y);
+            let e1 = t.grad[2] * (x - t.v[2].x) + t.grad[3] * (y - t.v[2].y);
+            Vec2::new(e0, e1)
+        };
+        for (x, y) in [(32.0, 40.0), (20.5, 50.2), (40.0, 30.0)] {
+            let e = e_at(x, y);
+            let hit = SampleHit { triangle: 0, bary: t.bary(e.x, e.y), screen: 0, e };
+            let [sx, sy] = fp.bary_steps(&hit, 1.0);
+            let h = 0.01;
+            let fd = |dx: f32, dy: f32| {
+                let (a, b) = (e_at(x + dx * h, y + dy * h), e_at(x - dx * h, y - dy * h));
+                (t.bary(a.x, a.y) - t.bary(b.x, b.y)) / (2.0 * h)
+            };
+            for (got, want) in [(sx, fd(1.0, 0.0)), (sy, fd(0.0, 1.0))] {
+                assert!((got - want).length() <= 1e-3 * (1.0 + want.length()), "({x}, {y}): {got} vs {want}");
+            }
+            assert!(sy.length() > 1e-3, "the floor's barycentrics change down the screen");
         }
     }
 }

@@ -190,14 +190,7 @@ fn decode_texture(tex: &gltf::Texture, images: &[gltf::image::Data], srgb: bool)
             }
         })
         .collect();
-    Texture {
-        width: data.width,
-        height: data.height,
-        texels,
-        wrap_u: wrap(sampler.wrap_s()),
-        wrap_v: wrap(sampler.wrap_t()),
-        nearest,
-    }
+    Texture::new(data.width, data.height, texels, wrap(sampler.wrap_s()), wrap(sampler.wrap_t()), nearest)
 }
 
 fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut Scene) -> Material {

@@ -44,6 +44,19 @@ impl TextureRef {
         };
         textures[self.texture as usize].sample(uv)
     }
+
+    /// The texture averaged over the footprint spanned by UV steps `du`, `dv` around `uv` (after
+    /// the UV transform): see [`Texture::sample_footprint`].
+    #[inline]
+    pub fn sample_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Vec4 {
+        let (uv, du, dv) = match self.transform {
+            Some(m) => {
+                ((m * uv.extend(1.0)).truncate(), (m * du.extend(0.0)).truncate(), (m * dv.extend(0.0)).truncate())
+            }
+            None => (uv, du, dv),
+        };
+        textures[self.texture as usize].sample_footprint(uv, du, dv)
+    }
 }
 
 /// How a material's alpha is used.
@@ -201,10 +214,33 @@ impl Material {
     /// Tangent-space normal from the normal map (scaled, unnormalised), if the material has one.
     #[inline]
     pub fn tangent_normal(&self, textures: &[Texture], uv: Vec2) -> Option<Vec3> {
-        self.normal_texture.as_ref().map(|t| {
-            let s = t.sample(textures, uv).xyz() * 2.0 - Vec3::ONE;
-            Vec3::new(s.x * self.normal_scale, s.y * self.normal_scale, s.z)
-        })
+        self.normal_texture.as_ref().map(|t| self.decode_normal(t.sample(textures, uv)))
+    }
+
+    /// Normal-map texel → scaled tangent-space normal.
+    #[inline]
+    fn decode_normal(&self, texel: Vec4) -> Vec3 {
+        let s = texel.xyz() * 2.0 - Vec3::ONE;
+        Vec3::new(s.x * self.normal_scale, s.y * self.normal_scale, s.z)
+    }
+
+    /// [`Material::albedo`] averaged over a UV footprint (steps `du`, `dv` around `uv`), as a
+    /// pixel sees a texture finer than itself: the guide pass's anti-aliased lookup.
+    #[inline]
+    pub fn albedo_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Vec3 {
+        if self.emits_at(textures, uv) {
+            return Vec3::ONE;
+        }
+        match &self.base_color_texture {
+            Some(t) => clamp_color((self.base_color * t.sample_footprint(textures, uv, du, dv)).xyz()),
+            None => clamp_color(self.base_color.xyz()),
+        }
+    }
+
+    /// [`Material::tangent_normal`] from the normal map averaged over a UV footprint.
+    #[inline]
+    pub fn tangent_normal_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Option<Vec3> {
+        self.normal_texture.as_ref().map(|t| self.decode_normal(t.sample_footprint(textures, uv, du, dv)))
     }
 
     /// Evaluates every factor and texture at `uv`.

@@ -138,12 +138,5 @@ fn load_texture(path: &Path) -> Result<Texture, String> {
             Vec4::new(c(0), c(1), c(2), p[3] as f32 / 255.0)
         })
         .collect();
-    Ok(Texture {
-        width: img.width(),
-        height: img.height(),
-        texels,
-        wrap_u: Wrap::Repeat,
-        wrap_v: Wrap::Repeat,
-        nearest: false,
-    })
+    Ok(Texture::new(img.width(), img.height(), texels, Wrap::Repeat, Wrap::Repeat, false))
 }

@@ -12,7 +12,8 @@ pub enum Wrap {
     Mirror,
 }
 
-/// A decoded texture in linear float RGBA (sRGB colour textures are linearised at load).
+/// A decoded texture in linear float RGBA (sRGB colour textures are linearised at load), with a
+/// box-filtered mip pyramid for footprint-filtered lookups ([`Texture::sample_footprint`]).
 #[derive(Debug, Clone)]
 pub struct Texture {
     /// Width in texels.
@@ -27,7 +28,20 @@ pub struct Texture {
     pub wrap_v: Wrap,
     /// Nearest-texel lookup instead of bilinear.
     pub nearest: bool,
+    /// Mip levels 1, 2, …: each halves the one before (2×2 box), down to 1×1.
+    mips: Vec<MipLevel>,
 }
+
+/// One reduced level of a texture's mip pyramid.
+#[derive(Debug, Clone)]
+struct MipLevel {
+    width: u32,
+    height: u32,
+    texels: Vec<Vec4>,
+}
+
+/// Most probes along the long axis of an anisotropic footprint.
+const MAX_ANISOTROPY: usize = 2;
 
 /// ⌊x⌋ as an integer (saturating), without a call into libm's `floor`.
 #[inline]
@@ -59,28 +73,57 @@ fn wrap_index(i: i64, n: u32, wrap: Wrap) -> usize {
     }) as usize
 }
 
+/// 2×2 box reduction of a `w`×`h` level (an odd last row or column is averaged with itself).
+fn reduce(w: u32, h: u32, texels: &[Vec4]) -> MipLevel {
+    let (nw, nh) = (w.div_ceil(2).max(1), h.div_ceil(2).max(1));
+    let at = |x: u32, y: u32| texels[(y.min(h - 1) * w + x.min(w - 1)) as usize];
+    let texels = (0..nh)
+        .flat_map(|y| (0..nw).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            (at(2 * x, 2 * y) + at(2 * x + 1, 2 * y) + at(2 * x, 2 * y + 1) + at(2 * x + 1, 2 * y + 1)) * 0.25
+        })
+        .collect();
+    MipLevel { width: nw, height: nh, texels }
+}
+
 impl Texture {
-    /// A 1×1 texture of one value.
-    pub fn constant(v: Vec4) -> Self {
-        Texture { width: 1, height: 1, texels: vec![v], wrap_u: Wrap::Repeat, wrap_v: Wrap::Repeat, nearest: true }
+    /// A texture from row-major texels (top row first), with its mip pyramid built.
+    /// `texels.len()` must be `width × height`.
+    pub fn new(width: u32, height: u32, texels: Vec<Vec4>, wrap_u: Wrap, wrap_v: Wrap, nearest: bool) -> Self {
+        debug_assert_eq!(texels.len(), width as usize * height as usize);
+        let mut mips: Vec<MipLevel> = Vec::new();
+        let (mut w, mut h) = (width, height);
+        while w > 1 || h > 1 {
+            let next = reduce(w, h, mips.last().map_or(&texels, |m| &m.texels));
+            (w, h) = (next.width, next.height);
+            mips.push(next);
+        }
+        Texture { width, height, texels, wrap_u, wrap_v, nearest, mips }
     }
 
-    /// The texel at wrapped indices (`xi` < width, `yi` < height).
-    #[inline]
-    fn texel(&self, xi: usize, yi: usize) -> Vec4 {
-        self.texels[yi * self.width as usize + xi]
+    /// A 1×1 texture of one value.
+    pub fn constant(v: Vec4) -> Self {
+        Texture::new(1, 1, vec![v], Wrap::Repeat, Wrap::Repeat, true)
     }
 
     /// Samples at texture coordinate `uv` with bilinear (or nearest) filtering.
     /// Non-finite coordinates sample texel (0,0).
+    #[inline]
     pub fn sample(&self, uv: Vec2) -> Vec4 {
+        self.sample_level(self.width, self.height, &self.texels, uv, self.nearest)
+    }
+
+    /// Bilinear (or nearest) lookup in one level of `w`×`h` texels.
+    #[inline(always)]
+    fn sample_level(&self, w: u32, h: u32, texels: &[Vec4], uv: Vec2, nearest: bool) -> Vec4 {
         let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
+        let texel = |xi: usize, yi: usize| texels[yi * w as usize + xi];
         // Texel-centre convention: texel i covers [i, i+1) / n.
-        let x = (uv.x as f64) * self.width as f64 - 0.5;
-        let y = (uv.y as f64) * self.height as f64 - 0.5;
-        let (wu, wv) = (|i| wrap_index(i, self.width, self.wrap_u), |i| wrap_index(i, self.height, self.wrap_v));
-        if self.nearest {
-            return self.texel(wu(floor(x + 0.5)), wv(floor(y + 0.5)));
+        let x = (uv.x as f64) * w as f64 - 0.5;
+        let y = (uv.y as f64) * h as f64 - 0.5;
+        let (wu, wv) = (|i| wrap_index(i, w, self.wrap_u), |i| wrap_index(i, h, self.wrap_v));
+        if nearest {
+            return texel(wu(floor(x + 0.5)), wv(floor(y + 0.5)));
         }
         let (x0, y0) = (floor(x), floor(y));
         // Fractional parts (0 beyond ±2⁶³, where floor saturated and every double is an integer).
@@ -88,9 +131,46 @@ impl Texture {
         let (fx, fy) = (frac(x, x0), frac(y, y0));
         let (xa, xb) = (wu(x0), wu(x0.saturating_add(1)));
         let (ya, yb) = (wv(y0), wv(y0.saturating_add(1)));
-        let a = self.texel(xa, ya).lerp(self.texel(xb, ya), fx);
-        let b = self.texel(xa, yb).lerp(self.texel(xb, yb), fx);
+        let a = texel(xa, ya).lerp(texel(xb, ya), fx);
+        let b = texel(xa, yb).lerp(texel(xb, yb), fx);
         a.lerp(b, fy)
+    }
+
+    /// Bilinear lookup in mip level `level` (0 = full resolution, as [`Texture::sample`]).
+    #[inline]
+    fn sample_mip(&self, level: usize, uv: Vec2) -> Vec4 {
+        match level.checked_sub(1).and_then(|l| self.mips.get(l)) {
+            Some(m) => self.sample_level(m.width, m.height, &m.texels, uv, false),
+            None if level == 0 => self.sample(uv),
+            None => self.mips.last().map_or(self.texels[0], |m| m.texels[0]),
+        }
+    }
+
+    /// The texture averaged over a footprint: the parallelogram centred on `uv` spanned by `du`
+    /// and `dv` (the UV steps across one footprint along two screen axes). Anisotropic filtering:
+    /// up to [`MAX_ANISOTROPY`] bilinear probes spaced along the long axis, in the mip level
+    /// nearest the short axis's width (or the long axis's over the probe count). A footprint no
+    /// wider than a texel is a plain [`Texture::sample`].
+    #[inline]
+    pub fn sample_footprint(&self, uv: Vec2, du: Vec2, dv: Vec2) -> Vec4 {
+        let size = Vec2::new(self.width as f32, self.height as f32);
+        // Footprint axes in level-0 texels (squared lengths: one square root below, not two).
+        let (a, b) = (du * size, dv * size);
+        let (la, lb) = (a.length_squared(), b.length_squared());
+        if !(la.max(lb) > 1.0) || !(la + lb).is_finite() {
+            return self.sample(uv);
+        }
+        let (major, lmaj, lmin) = if la >= lb { (du, la, lb) } else { (dv, lb, la) };
+        // Probes along the major axis; each covers √lmaj / probes texels.
+        let probes = ((lmaj / lmin.max(1e-12)).sqrt().ceil() as usize).clamp(1, MAX_ANISOTROPY);
+        let width2 = lmin.max(lmaj / (probes * probes) as f32);
+        // The mip level nearest log2(width) = ½ log2(width²).
+        let level = (0.5 * width2.max(1.0).log2()).round() as usize;
+        let mut sum = Vec4::ZERO;
+        for k in 0..probes {
+            sum += self.sample_mip(level, uv + major * ((k as f32 + 0.5) / probes as f32 - 0.5));
+        }
+        sum / probes as f32
     }
 
     /// Mean of all texels, used to estimate the power of textured emitters.
@@ -105,14 +185,7 @@ mod tests {
     use super::*;
 
     fn checker() -> Texture {
-        Texture {
-            width: 2,
-            height: 2,
-            texels: vec![Vec4::ONE, Vec4::ZERO, Vec4::ZERO, Vec4::ONE],
-            wrap_u: Wrap::Repeat,
-            wrap_v: Wrap::Repeat,
-            nearest: false,
-        }
+        Texture::new(2, 2, vec![Vec4::ONE, Vec4::ZERO, Vec4::ZERO, Vec4::ONE], Wrap::Repeat, Wrap::Repeat, false)
     }
 
     #[test]
@@ -124,6 +197,49 @@ mod tests {
         assert_eq!(t.sample(Vec2::new(0.0, 0.25)), Vec4::splat(0.5));
         assert_eq!(t.sample(Vec2::new(1.25, -0.75)), Vec4::ONE);
         assert_eq!(t.sample(Vec2::new(f32::NAN, 0.0)), t.sample(Vec2::ZERO));
+    }
+
+    /// A `n`×`n` texture whose texel (x, y) is `f(x, y)` (grey).
+    fn pattern(n: u32, f: impl Fn(u32, u32) -> f32) -> Texture {
+        let texels = (0..n * n).map(|i| Vec4::splat(f(i % n, i / n))).collect();
+        Texture::new(n, n, texels, Wrap::Repeat, Wrap::Repeat, false)
+    }
+
+    #[test]
+    fn mip_levels_halve_down_to_one_texel_and_keep_the_mean() {
+        let t = pattern(6, |x, y| ((x * 7 + y * 3) % 5) as f32);
+        let sizes: Vec<(u32, u32)> = t.mips.iter().map(|m| (m.width, m.height)).collect();
+        assert_eq!(sizes, [(3, 3), (2, 2), (1, 1)]);
+        let even = pattern(8, |x, y| ((x * 7 + y * 3) % 5) as f32);
+        assert!((even.mips.last().unwrap().texels[0].x - even.mean().x).abs() < 1e-5);
+    }
+
+    #[test]
+    fn footprint_lookup_averages_detail_finer_than_the_footprint() {
+        // A one-texel checker: point lookups give 0 or 1, an 8-texel footprint its mean.
+        let t = pattern(64, |x, y| ((x + y) % 2) as f32);
+        let step = 8.0 / 64.0;
+        for uv in [Vec2::new(0.3, 0.7), Vec2::new(0.51, 0.12), Vec2::new(-2.2, 5.9)] {
+            let v = t.sample_footprint(uv, Vec2::new(step, 0.0), Vec2::new(0.0, step)).x;
+            assert!((v - 0.5).abs() < 0.02, "{uv}: {v}");
+        }
+        // A footprint under a texel is the plain bilinear lookup.
+        let uv = Vec2::new(0.313, 0.77);
+        assert_eq!(t.sample_footprint(uv, Vec2::new(0.5 / 64.0, 0.0), Vec2::new(0.0, 0.2 / 64.0)), t.sample(uv));
+    }
+
+    #[test]
+    fn anisotropic_footprint_keeps_detail_across_its_short_axis() {
+        // Vertical stripes 4 texels wide, and a footprint 1/2 texel across them and 6 along them
+        // (a floor seen at a grazing angle): the stripe stays white. An isotropic filter sized by
+        // the long axis would average a white and a black stripe.
+        let t = pattern(64, |x, _| ((x / 4) % 2 == 0) as u32 as f32);
+        let uv = Vec2::new(2.0 / 64.0, 0.4);
+        let along = t.sample_footprint(uv, Vec2::new(0.5 / 64.0, 0.0), Vec2::new(0.0, 6.0 / 64.0)).x;
+        assert!(along > 0.9, "{along}");
+        // Turned 90°: the long axis crosses the stripes and takes in the black ones.
+        let across = t.sample_footprint(uv, Vec2::new(6.0 / 64.0, 0.0), Vec2::new(0.0, 0.5 / 64.0)).x;
+        assert!(across < 0.8, "{across}");
     }
 
     #[test]
