@@ -88,9 +88,7 @@ impl Integrator<'_> {
             let wo = -d;
             let material = &scene.materials[scene.triangles[hit.triangle as usize].material as usize];
             if depth == 0 {
-                // Emitters record white albedo, as `Material::albedo` does.
-                let albedo = if s.params.emission != Vec3::ZERO { Vec3::ONE } else { s.params.base_color };
-                aov = Aov { albedo, normal: s.ns, depth: (s.p - origin).length() };
+                aov = Aov { albedo: s.params.aov_albedo(), normal: s.ns, depth: (s.p - origin).length() };
             }
             // Emission, front side only unless double-sided.
             if s.params.emission != Vec3::ZERO && (material.double_sided || wo.dot(s.ng) > 0.0) {

@@ -164,6 +164,19 @@ pub struct SurfaceParams {
     pub tangent_normal: Option<Vec3>,
 }
 
+impl SurfaceParams {
+    /// The albedo the path tracer's AOV records at this point: white where it emits, else its
+    /// base colour (as [`Material::albedo`]).
+    #[inline]
+    pub fn aov_albedo(&self) -> Vec3 {
+        if self.emission != Vec3::ZERO {
+            Vec3::ONE
+        } else {
+            self.base_color
+        }
+    }
+}
+
 impl Material {
     /// True if the material emits light anywhere.
     pub fn is_emissive(&self) -> bool {
@@ -200,15 +213,14 @@ impl Material {
     }
 
     /// The albedo that the AOVs and the guide pass record: base colour × texture in [0,1], or
-    /// white where the surface emits. A light's radiance is not reflected light, so a denoiser
-    /// that divides colour by albedo must leave it as it is; with its base colour (often black)
-    /// it would be divided by ~0 and its edges would bleed into the surfaces around it.
+    /// white where the surface emits (the rule of [`SurfaceParams::aov_albedo`]). A light's
+    /// radiance is not reflected light, so a denoiser that divides colour by albedo must leave it
+    /// as it is; with its base colour (often black) it would be divided by ~0 and its edges would
+    /// bleed into the surfaces around it.
     #[inline]
     pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
-        if self.emits_at(textures, uv) {
-            return Vec3::ONE;
-        }
-        clamp_color(self.base_rgba(textures, uv).xyz())
+        // A zero footprint is a plain texture lookup.
+        self.albedo_footprint(textures, uv, Vec2::ZERO, Vec2::ZERO)
     }
 
     /// Tangent-space normal from the normal map (scaled, unnormalised), if the material has one.
