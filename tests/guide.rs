@@ -168,6 +168,27 @@ fn sparse_ao_is_as_close_to_converged_ao_as_dense_ao() {
     }
 }
 
+/// Large guides interpolate AO from a coarser lattice (`default_ao_step`), sized so that its
+/// error stays below that of a 256² guide's lattice.
+#[test]
+fn large_guides_coarser_ao_lattice_is_as_accurate_as_a_small_guides() {
+    let big = 864;
+    assert_eq!(rtd::guide::default_ao_step(256, 256), 4);
+    assert!(rtd::guide::default_ao_step(big, big) > 4, "the big guide must use a coarser lattice");
+    for name in ["cornell-box", "small-lights"] {
+        let scene = rtd::scene::load_scene(&repo_path(&format!("scenes/{name}.gltf"))).unwrap();
+        let cam = scene.select_camera(None).unwrap().0;
+        // Mean |sparse − per-pixel AO| at a resolution.
+        let error = |size: u32| {
+            let sparse = guide(&scene, &cam, GuideSettings::new(size, size));
+            let dense = guide(&scene, &cam, GuideSettings::new(size, size).ao_step(1));
+            sparse.ao.iter().zip(&dense.ao).map(|(a, b)| (a - b).abs() as f64).sum::<f64>() / sparse.ao.len() as f64
+        };
+        let (small, large) = (error(256), error(big));
+        assert!(large <= small, "{name}: mean AO error {large} at {big}² vs {small} at 256²");
+    }
+}
+
 #[test]
 fn deterministic_across_runs_and_threads() {
     let scene = rtd::scene::load_scene(&repo_path("scenes/textured-interior.gltf")).unwrap();

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use rtd_image::{HdrImage, Layers};
 use rtd_render::surface::{shading_normal, Surface};
 use rtd_render::{RenderError, RenderSettings, SceneBvh, Workers};
-use rtd_scene::{Camera, Projection, Scene};
+use rtd_scene::{Camera, MaterialFootprint, Projection, Scene};
 
 /// Width in pixels of the screen footprint over which each sample averages its textures: about
 /// the samples' spacing, so together they cover the pixel filter (0.5 fits the converged albedo
@@ -25,6 +25,15 @@ use rtd_scene::{Camera, Projection, Scene};
 pub const SAMPLE_FOOTPRINT: f32 = 0.5;
 
 pub use ao::{ao_at, pattern, AoPoint};
+
+/// The default AO lattice step: every 4th pixel, or coarser for large images, keeping at least
+/// about 135 lattice points across the short side (more than twice the 64 of a 256² guide).
+/// The lattice then has the same density per image at every resolution above 540 px, and its
+/// interpolation error stays below a 256² guide's (1080p at step 8: mean |AO − per-pixel AO|
+/// 0.002–0.006 on the bundled scenes; 256² at step 4: 0.006–0.009).
+pub fn default_ao_step(width: u32, height: u32) -> u32 {
+    (width.min(height) / 135).max(4)
+}
 
 /// Options of the guide pass, builder style: `GuideSettings::new(w, h).ao_rays(64)`.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,9 +53,11 @@ pub struct GuideSettings {
 }
 
 impl GuideSettings {
-    /// Defaults for a `width`×`height` guide: 24 AO rays every 4th pixel, radius 10% of the scene.
+    /// Defaults for a `width`×`height` guide: 24 AO rays, radius 10% of the scene, evaluated on a
+    /// lattice every [`default_ao_step`] pixels.
     pub fn new(width: u32, height: u32) -> Self {
-        GuideSettings { width, height, ao_rays: 24, ao_radius: None, ao_step: 4, threads: None }
+        let ao_step = default_ao_step(width, height);
+        GuideSettings { width, height, ao_rays: 24, ao_radius: None, ao_step, threads: None }
     }
     /// Sets the AO ray count.
     pub fn ao_rays(mut self, n: u32) -> Self {
@@ -79,6 +90,14 @@ struct Shaded {
     centre: Option<AoPoint>,
 }
 
+/// One band of rows of the layers that the rasteriser writes in place.
+struct Band<'a> {
+    albedo: &'a mut [Vec3],
+    normal: &'a mut [Vec3],
+    depth: &'a mut [f32],
+    centre: &'a mut [Option<AoPoint>],
+}
+
 /// Camera-space distance of `p` as the path tracer's depth AOV defines it.
 #[inline]
 fn camera_depth(camera: &Camera, p: Vec3) -> f32 {
@@ -105,19 +124,17 @@ fn has_textures(m: &rtd_scene::Material) -> bool {
     m.base_color_texture.is_some() || m.normal_texture.is_some() || m.emissive_texture.is_some()
 }
 
-/// Albedo and tangent-space normal of a textured material averaged over the footprint that the
-/// barycentric steps `steps` span around barycentrics `b`.
+/// The texture filters of a sample's footprint on triangle `t` with material `m`, from the
+/// footprint's barycentric steps `steps` (along screen x and y).
 #[inline]
-fn texture_lookup(
+fn texture_footprint(
     scene: &Scene,
     t: &rtd_scene::Triangle,
     m: &rtd_scene::Material,
     steps: &[Vec3; 2],
-    b: Vec3,
-) -> (Vec3, Option<Vec3>) {
-    let at = |d: Vec3| t.uv[0] * d.x + t.uv[1] * d.y + t.uv[2] * d.z;
-    let (uv, du, dv) = (at(b), at(steps[0]), at(steps[1]));
-    (m.albedo_footprint(&scene.textures, uv, du, dv), m.tangent_normal_footprint(&scene.textures, uv, du, dv))
+) -> MaterialFootprint {
+    let [du, dv] = steps.map(|d| t.uv[0] * d.x + t.uv[1] * d.y + t.uv[2] * d.z);
+    m.footprint(&scene.textures, du, dv)
 }
 
 /// Fast path for the common pixel: every sample on one untextured triangle with flat normals.
@@ -188,11 +205,15 @@ impl GuidePass {
         // emitter's (and like the path tracer's albedo AOV).
         let miss_albedo = if scene.environment.is_black() { Vec3::ZERO } else { Vec3::ONE };
         // Shade every sample with the renderer's surface code; keep the centre sample for AO.
-        let shaded: Vec<Shaded> = raster::rasterize(scene, camera, w, h, |px, footprints| {
+        let shade = |px: &[Option<raster::SampleHit>], footprints: &raster::Footprints| {
             let mut out = Shaded::default();
             if let Some(fast) = shade_uniform(scene, camera, &front, px) {
                 return fast;
             }
+            // Texture filters of the footprint, computed at a pixel's first sample on each textured
+            // triangle and shared by its other samples there (they lie within a pixel, where the
+            // perspective derivatives barely change).
+            let mut filters: Option<(u32, MaterialFootprint)> = None;
             for (s, hit) in px.iter().enumerate() {
                 let Some(hit) = hit else {
                     out.albedo += miss_albedo * inv;
@@ -207,7 +228,16 @@ impl GuidePass {
                 // Textures are averaged over the sample's footprint, so that 9 samples see a
                 // texture finer than a pixel as the path tracer's many samples converge to it.
                 let (albedo, tangent) = if m.base_color_texture.is_some() || m.normal_texture.is_some() {
-                    texture_lookup(scene, t, m, &footprints.bary_steps(hit, SAMPLE_FOOTPRINT), b)
+                    let f = match filters {
+                        Some((tri, f)) if tri == hit.triangle => f,
+                        _ => {
+                            let f = texture_footprint(scene, t, m, &footprints.bary_steps(hit, SAMPLE_FOOTPRINT));
+                            filters = Some((hit.triangle, f));
+                            f
+                        }
+                    };
+                    let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+                    (m.albedo_filtered(&scene.textures, uv, &f), m.tangent_normal_filtered(&scene.textures, uv, &f))
                 } else {
                     let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
                     (m.albedo(&scene.textures, uv), m.tangent_normal(&scene.textures, uv))
@@ -220,15 +250,31 @@ impl GuidePass {
                 }
             }
             out
+        };
+        // The layers are written in place, a band of rows at a time.
+        let pixels = w as usize * h as usize;
+        let (mut albedo, mut normal) = (vec![Vec3::ZERO; pixels], vec![Vec3::ZERO; pixels]);
+        let mut depth = vec![0.0f32; pixels];
+        let mut centre: Vec<Option<AoPoint>> = vec![None; pixels];
+        let rows = w as usize * raster::TILE as usize;
+        let bands: Vec<Band> = albedo
+            .chunks_mut(rows)
+            .zip(normal.chunks_mut(rows))
+            .zip(depth.chunks_mut(rows))
+            .zip(centre.chunks_mut(rows))
+            .map(|(((albedo, normal), depth), centre)| Band { albedo, normal, depth, centre })
+            .collect();
+        raster::rasterize(scene, camera, w, h, bands, |band, i, px, footprints| {
+            let s = shade(px, footprints);
+            (band.albedo[i], band.normal[i], band.depth[i], band.centre[i]) = (s.albedo, s.normal, s.depth, s.centre);
         });
         let bounds = scene.bounds();
         let radius =
             settings.ao_radius.unwrap_or(if bounds.is_empty() { 1.0 } else { 0.1 * bounds.diagonal().length() });
         let dirs = pattern(settings.ao_rays);
-        let ao = ao::ao_image(scene, bvh, |i| shaded[i].centre, w, h, &dirs, radius, settings.ao_step);
-        let albedo = HdrImage::from_pixels(w, h, shaded.par_iter().map(|s| s.albedo).collect());
-        let normal = HdrImage::from_pixels(w, h, shaded.par_iter().map(|s| s.normal).collect());
-        let depth = shaded.par_iter().map(|s| s.depth).collect();
+        let ao = ao::ao_image(scene, bvh, |i| centre[i], w, h, &dirs, radius, settings.ao_step);
+        let albedo = HdrImage::from_pixels(w, h, albedo);
+        let normal = HdrImage::from_pixels(w, h, normal);
         let guide = HdrImage::from_pixels(w, h, albedo.pixels.par_iter().zip(&ao).map(|(a, o)| *a * *o).collect());
         GuidePass { albedo, normal, depth, ao, guide, seconds: start.elapsed().as_secs_f64() }
     }
@@ -247,5 +293,23 @@ impl GuidePass {
         layers.push_xyz("normal", &self.normal);
         layers.push("depth.Z", self.depth.clone());
         layers.push("ao.Y", self.ao.clone());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ao_lattice_step_grows_with_the_short_side() {
+        assert_eq!(default_ao_step(1, 1), 4);
+        assert_eq!(default_ao_step(256, 256), 4);
+        assert_eq!(default_ao_step(1920, 1080), 8);
+        assert_eq!(default_ao_step(1080, 1920), 8);
+        assert_eq!(default_ao_step(3840, 2160), 16);
+        // The lattice keeps at least 135 points across the short side.
+        for side in [540, 1000, 2160, 16384] {
+            assert!(side / default_ao_step(side, side) >= 135, "{side}");
+        }
     }
 }

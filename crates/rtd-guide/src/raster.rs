@@ -165,13 +165,17 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
 }
 
 /// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
-/// see (and their [`Footprints`]); returns the shaded pixels row-major. Tiles are independent,
-/// so `shade` runs in parallel and only per-pixel results leave a tile.
-pub fn rasterize<T, F>(scene: &Scene, cam: &Camera, width: u32, height: u32, shade: F) -> Vec<T>
+/// see (and their [`Footprints`]). The image is cut into bands of [`TILE`] rows: `bands` holds
+/// one output per band (top first, as many as `height.div_ceil(TILE)`), and
+/// `shade(band, i, samples, footprints)` stores pixel `i` of the band (row-major within it), so
+/// the caller's outputs are written in place. Bands are independent, so `shade` runs in
+/// parallel and the result never depends on the thread count.
+pub fn rasterize<B, F>(scene: &Scene, cam: &Camera, width: u32, height: u32, bands: Vec<B>, shade: F)
 where
-    T: Send + Clone + Default,
-    F: Fn(&[Option<SampleHit>], &Footprints) -> T + Sync,
+    B: Send,
+    F: Fn(&mut B, usize, &[Option<SampleHit>], &Footprints) + Sync,
 {
+    assert_eq!(bands.len(), height.div_ceil(TILE) as usize, "one output per band of TILE rows");
     let bounds = scene.bounds();
     let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
     // The near plane sits far enough in front of the eye to keep 1/z well conditioned.
@@ -200,10 +204,8 @@ where
             }
         }
     }
-    // One job per row of tiles, writing straight into its rows of the output.
-    // (Filled in parallel: a serial fill of a large frame costs as much as a share of the raster.)
-    let mut out: Vec<T> = (0..width as usize * height as usize).into_par_iter().map(|_| T::default()).collect();
-    out.par_chunks_mut(width as usize * TILE as usize).enumerate().for_each(|(ty, rows)| {
+    // One job per band (row of tiles), writing straight into the caller's outputs.
+    bands.into_par_iter().enumerate().for_each(|(ty, mut band)| {
         let y0 = ty as u32 * TILE;
         let th = TILE.min(height - y0) as usize;
         let mut depth = vec![f32::NEG_INFINITY; TILE as usize * TILE as usize * SAMPLES];
@@ -231,11 +233,10 @@ where
                         }
                     })
                 });
-                rows[(k / tw) * width as usize + x0 as usize + k % tw] = shade(&hits, &footprints);
+                shade(&mut band, (k / tw) * width as usize + x0 as usize + k % tw, &hits, &footprints);
             }
         }
     });
-    out
 }
 
 /// What a sample sees while its tile is drawn: the screen triangle and its edge functions e0, e1.

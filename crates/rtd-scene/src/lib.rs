@@ -21,10 +21,10 @@ pub use environment::Environment;
 pub use error::SceneError;
 pub use gltf_import::{load_gltf, SUPPORTED_GLTF_EXTENSIONS};
 pub use light::Light;
-pub use material::{AlphaMode, Material, SurfaceParams, TextureRef, UvTransform};
+pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TextureRef, UvTransform};
 pub use obj_import::load_obj;
 pub use scene::{Aabb, Scene, Triangle};
-pub use texture::{Texture, Wrap};
+pub use texture::{FootprintFilter, Texture, Wrap};
 
 use std::path::Path;
 

@@ -1,5 +1,6 @@
 use glam::{Mat3, Vec2, Vec3, Vec4, Vec4Swizzles};
 
+use crate::texture::FootprintFilter;
 use crate::Texture;
 
 /// `KHR_texture_transform`: uv' = T(offset) · R(rotation) · S(scale) · uv.
@@ -49,14 +50,36 @@ impl TextureRef {
     /// the UV transform): see [`Texture::sample_footprint`].
     #[inline]
     pub fn sample_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Vec4 {
-        let (uv, du, dv) = match self.transform {
-            Some(m) => {
-                ((m * uv.extend(1.0)).truncate(), (m * du.extend(0.0)).truncate(), (m * dv.extend(0.0)).truncate())
-            }
-            None => (uv, du, dv),
-        };
-        textures[self.texture as usize].sample_footprint(uv, du, dv)
+        self.sample_filtered(textures, &self.footprint_filter(textures, du, dv), uv)
     }
+
+    /// The filter of the footprint spanned by UV steps `du`, `dv` (before the UV transform).
+    #[inline]
+    pub fn footprint_filter(&self, textures: &[Texture], du: Vec2, dv: Vec2) -> FootprintFilter {
+        let (du, dv) = match self.transform {
+            Some(m) => ((m * du.extend(0.0)).truncate(), (m * dv.extend(0.0)).truncate()),
+            None => (du, dv),
+        };
+        textures[self.texture as usize].footprint_filter(du, dv)
+    }
+
+    /// The texture at `uv` (before the UV transform) through `filter`.
+    #[inline]
+    pub fn sample_filtered(&self, textures: &[Texture], filter: &FootprintFilter, uv: Vec2) -> Vec4 {
+        let uv = match self.transform {
+            Some(m) => (m * uv.extend(1.0)).truncate(),
+            None => uv,
+        };
+        textures[self.texture as usize].sample_filtered(filter, uv)
+    }
+}
+
+/// The footprint filters of a material's base-colour and normal textures (see
+/// [`Material::footprint`]), shared by lookups with the same footprint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MaterialFootprint {
+    base: FootprintFilter,
+    normal: FootprintFilter,
 }
 
 /// How a material's alpha is used.
@@ -240,19 +263,45 @@ impl Material {
     /// pixel sees a texture finer than itself: the guide pass's anti-aliased lookup.
     #[inline]
     pub fn albedo_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Vec3 {
-        if self.emits_at(textures, uv) {
-            return Vec3::ONE;
-        }
-        match &self.base_color_texture {
-            Some(t) => clamp_color((self.base_color * t.sample_footprint(textures, uv, du, dv)).xyz()),
-            None => clamp_color(self.base_color.xyz()),
-        }
+        self.albedo_filtered(textures, uv, &self.footprint(textures, du, dv))
     }
 
     /// [`Material::tangent_normal`] from the normal map averaged over a UV footprint.
     #[inline]
     pub fn tangent_normal_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Option<Vec3> {
-        self.normal_texture.as_ref().map(|t| self.decode_normal(t.sample_footprint(textures, uv, du, dv)))
+        self.tangent_normal_filtered(textures, uv, &self.footprint(textures, du, dv))
+    }
+
+    /// The filters for a footprint spanned by UV steps `du`, `dv`, for
+    /// [`Material::albedo_filtered`] and [`Material::tangent_normal_filtered`].
+    #[inline]
+    pub fn footprint(&self, textures: &[Texture], du: Vec2, dv: Vec2) -> MaterialFootprint {
+        let filter =
+            |t: &Option<TextureRef>| t.map_or(FootprintFilter::POINT, |t| t.footprint_filter(textures, du, dv));
+        MaterialFootprint { base: filter(&self.base_color_texture), normal: filter(&self.normal_texture) }
+    }
+
+    /// [`Material::albedo_footprint`] with the footprint's filters already computed.
+    #[inline]
+    pub fn albedo_filtered(&self, textures: &[Texture], uv: Vec2, footprint: &MaterialFootprint) -> Vec3 {
+        if self.emits_at(textures, uv) {
+            return Vec3::ONE;
+        }
+        match &self.base_color_texture {
+            Some(t) => clamp_color((self.base_color * t.sample_filtered(textures, &footprint.base, uv)).xyz()),
+            None => clamp_color(self.base_color.xyz()),
+        }
+    }
+
+    /// [`Material::tangent_normal_footprint`] with the footprint's filters already computed.
+    #[inline]
+    pub fn tangent_normal_filtered(
+        &self,
+        textures: &[Texture],
+        uv: Vec2,
+        footprint: &MaterialFootprint,
+    ) -> Option<Vec3> {
+        self.normal_texture.as_ref().map(|t| self.decode_normal(t.sample_filtered(textures, &footprint.normal, uv)))
     }
 
     /// Evaluates every factor and texture at `uv`.

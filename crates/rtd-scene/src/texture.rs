@@ -40,6 +40,23 @@ struct MipLevel {
     texels: Vec<Vec4>,
 }
 
+/// How a footprint is filtered in one texture ([`Texture::footprint_filter`]): a plain lookup, or
+/// `probes` bilinear lookups in mip `level`, spread along `major`. It depends only on the
+/// footprint's UV steps, so lookups that share a footprint (samples within one pixel) compute it
+/// once and move only its centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FootprintFilter {
+    level: usize,
+    /// 0: a plain lookup.
+    probes: usize,
+    major: Vec2,
+}
+
+impl FootprintFilter {
+    /// A plain (bilinear or nearest) lookup, as for a footprint no wider than a texel.
+    pub const POINT: FootprintFilter = FootprintFilter { level: 0, probes: 0, major: Vec2::ZERO };
+}
+
 /// Most probes along the long axis of an anisotropic footprint.
 const MAX_ANISOTROPY: usize = 2;
 
@@ -71,6 +88,17 @@ fn wrap_index(i: i64, n: u32, wrap: Wrap) -> usize {
             }
         }
     }) as usize
+}
+
+/// The wrapped index of `i + 1`, given `a`, the wrapped index of `i`: for `Repeat` one step
+/// along the already-wrapped index (no second division), otherwise [`wrap_index`].
+#[inline]
+fn next_index(i: i64, a: usize, n: u32, wrap: Wrap) -> usize {
+    match wrap {
+        Wrap::Repeat if a + 1 == n as usize => 0,
+        Wrap::Repeat => a + 1,
+        _ => wrap_index(i.saturating_add(1), n, wrap),
+    }
 }
 
 /// 2×2 box reduction of a `w`×`h` level (an odd last row or column is averaged with itself).
@@ -129,8 +157,8 @@ impl Texture {
         // Fractional parts (0 beyond ±2⁶³, where floor saturated and every double is an integer).
         let frac = |v: f64, i: i64| Some((v - i as f64) as f32).filter(|f| (0.0..1.0).contains(f)).unwrap_or(0.0);
         let (fx, fy) = (frac(x, x0), frac(y, y0));
-        let (xa, xb) = (wu(x0), wu(x0.saturating_add(1)));
-        let (ya, yb) = (wv(y0), wv(y0.saturating_add(1)));
+        let (xa, ya) = (wu(x0), wv(y0));
+        let (xb, yb) = (next_index(x0, xa, w, self.wrap_u), next_index(y0, ya, h, self.wrap_v));
         let a = texel(xa, ya).lerp(texel(xb, ya), fx);
         let b = texel(xa, yb).lerp(texel(xb, yb), fx);
         a.lerp(b, fy)
@@ -153,12 +181,18 @@ impl Texture {
     /// wider than a texel is a plain [`Texture::sample`].
     #[inline]
     pub fn sample_footprint(&self, uv: Vec2, du: Vec2, dv: Vec2) -> Vec4 {
+        self.sample_filtered(&self.footprint_filter(du, dv), uv)
+    }
+
+    /// How [`Texture::sample_footprint`] filters the footprint spanned by `du` and `dv`.
+    #[inline]
+    pub fn footprint_filter(&self, du: Vec2, dv: Vec2) -> FootprintFilter {
         let size = Vec2::new(self.width as f32, self.height as f32);
         // Footprint axes in level-0 texels (squared lengths: one square root below, not two).
         let (a, b) = (du * size, dv * size);
         let (la, lb) = (a.length_squared(), b.length_squared());
         if !(la.max(lb) > 1.0) || !(la + lb).is_finite() {
-            return self.sample(uv);
+            return FootprintFilter::POINT;
         }
         let (major, lmaj, lmin) = if la >= lb { (du, la, lb) } else { (dv, lb, la) };
         // Probes along the major axis; each covers √lmaj / probes texels.
@@ -166,6 +200,17 @@ impl Texture {
         let width2 = lmin.max(lmaj / (probes * probes) as f32);
         // The mip level nearest log2(width) = ½ log2(width²).
         let level = (0.5 * width2.max(1.0).log2()).round() as usize;
+        FootprintFilter { level, probes, major }
+    }
+
+    /// The texture at `uv` through a filter from [`Texture::footprint_filter`]: the footprint's
+    /// average, centred on `uv`.
+    #[inline]
+    pub fn sample_filtered(&self, filter: &FootprintFilter, uv: Vec2) -> Vec4 {
+        let FootprintFilter { level, probes, major } = *filter;
+        if probes == 0 {
+            return self.sample(uv);
+        }
         let mut sum = Vec4::ZERO;
         for k in 0..probes {
             sum += self.sample_mip(level, uv + major * ((k as f32 + 0.5) / probes as f32 - 0.5));
@@ -249,6 +294,15 @@ mod tests {
         assert_eq!(wrap_index(-1, 4, Wrap::Mirror), 0);
         assert_eq!(wrap_index(5, 4, Wrap::Mirror), 2);
         assert_eq!(wrap_index(9, 4, Wrap::Clamp), 3);
+        // The neighbour index stepped from a wrapped index is the neighbour wrapped directly.
+        for wrap in [Wrap::Repeat, Wrap::Clamp, Wrap::Mirror] {
+            for n in [1, 2, 5] {
+                for i in -12..12 {
+                    let a = wrap_index(i, n, wrap);
+                    assert_eq!(next_index(i, a, n, wrap), wrap_index(i + 1, n, wrap), "{wrap:?} n={n} i={i}");
+                }
+            }
+        }
     }
 
     #[test]
