@@ -46,14 +46,8 @@ impl TextureRef {
         textures[self.texture as usize].sample(uv)
     }
 
-    /// The texture averaged over the footprint spanned by UV steps `du`, `dv` around `uv` (after
-    /// the UV transform): see [`Texture::sample_footprint`].
-    #[inline]
-    pub fn sample_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Vec4 {
-        self.sample_filtered(textures, &self.footprint_filter(textures, du, dv), uv)
-    }
-
-    /// The filter of the footprint spanned by UV steps `du`, `dv` (before the UV transform).
+    /// The filter of the footprint spanned by UV steps `du`, `dv` (before the UV transform): see
+    /// [`Texture::sample_footprint`].
     #[inline]
     pub fn footprint_filter(&self, textures: &[Texture], du: Vec2, dv: Vec2) -> FootprintFilter {
         let (du, dv) = match self.transform {
@@ -80,6 +74,12 @@ impl TextureRef {
 pub struct MaterialFootprint {
     base: FootprintFilter,
     normal: FootprintFilter,
+}
+
+impl MaterialFootprint {
+    /// Plain lookups: a footprint no wider than a texel.
+    pub const POINT: MaterialFootprint =
+        MaterialFootprint { base: FootprintFilter::POINT, normal: FootprintFilter::POINT };
 }
 
 /// How a material's alpha is used.
@@ -242,8 +242,7 @@ impl Material {
     /// bleed into the surfaces around it.
     #[inline]
     pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
-        // A zero footprint is a plain texture lookup.
-        self.albedo_footprint(textures, uv, Vec2::ZERO, Vec2::ZERO)
+        self.albedo_filtered(textures, uv, &MaterialFootprint::POINT)
     }
 
     /// Tangent-space normal from the normal map (scaled, unnormalised), if the material has one.
@@ -259,19 +258,6 @@ impl Material {
         Vec3::new(s.x * self.normal_scale, s.y * self.normal_scale, s.z)
     }
 
-    /// [`Material::albedo`] averaged over a UV footprint (steps `du`, `dv` around `uv`), as a
-    /// pixel sees a texture finer than itself: the guide pass's anti-aliased lookup.
-    #[inline]
-    pub fn albedo_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Vec3 {
-        self.albedo_filtered(textures, uv, &self.footprint(textures, du, dv))
-    }
-
-    /// [`Material::tangent_normal`] from the normal map averaged over a UV footprint.
-    #[inline]
-    pub fn tangent_normal_footprint(&self, textures: &[Texture], uv: Vec2, du: Vec2, dv: Vec2) -> Option<Vec3> {
-        self.tangent_normal_filtered(textures, uv, &self.footprint(textures, du, dv))
-    }
-
     /// The filters for a footprint spanned by UV steps `du`, `dv`, for
     /// [`Material::albedo_filtered`] and [`Material::tangent_normal_filtered`].
     #[inline]
@@ -281,7 +267,9 @@ impl Material {
         MaterialFootprint { base: filter(&self.base_color_texture), normal: filter(&self.normal_texture) }
     }
 
-    /// [`Material::albedo_footprint`] with the footprint's filters already computed.
+    /// [`Material::albedo`] averaged over a UV footprint around `uv` whose filters
+    /// [`Material::footprint`] worked out, as a pixel sees a texture finer than itself: the guide
+    /// pass's anti-aliased lookup.
     #[inline]
     pub fn albedo_filtered(&self, textures: &[Texture], uv: Vec2, footprint: &MaterialFootprint) -> Vec3 {
         if self.emits_at(textures, uv) {
@@ -293,7 +281,8 @@ impl Material {
         }
     }
 
-    /// [`Material::tangent_normal_footprint`] with the footprint's filters already computed.
+    /// [`Material::tangent_normal`] from the normal map averaged over a UV footprint around `uv`
+    /// whose filters [`Material::footprint`] worked out.
     #[inline]
     pub fn tangent_normal_filtered(
         &self,
