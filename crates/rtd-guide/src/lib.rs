@@ -227,21 +227,21 @@ impl GuidePass {
                 let d = camera_depth(camera, p);
                 // Textures are averaged over the sample's footprint, so that 9 samples see a
                 // texture finer than a pixel as the path tracer's many samples converge to it.
-                let (albedo, tangent) = if m.base_color_texture.is_some() || m.normal_texture.is_some() {
-                    let f = match filters {
+                let f = if m.base_color_texture.is_some() || m.normal_texture.is_some() {
+                    match filters {
                         Some((tri, f)) if tri == hit.triangle => f,
                         _ => {
                             let f = texture_footprint(scene, t, m, &footprints.bary_steps(hit, SAMPLE_FOOTPRINT));
                             filters = Some((hit.triangle, f));
                             f
                         }
-                    };
-                    let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
-                    (m.albedo_filtered(&scene.textures, uv, &f), m.tangent_normal_filtered(&scene.textures, uv, &f))
+                    }
                 } else {
-                    let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
-                    (m.albedo(&scene.textures, uv), m.tangent_normal(&scene.textures, uv))
+                    MaterialFootprint::POINT
                 };
+                let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+                let albedo = m.albedo_filtered(&scene.textures, uv, &f);
+                let tangent = m.tangent_normal_filtered(&scene.textures, uv, &f);
                 out.albedo += albedo * inv;
                 out.normal += shading_normal(t, b, ng, tangent) * inv;
                 out.depth += d * inv;
