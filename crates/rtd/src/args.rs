@@ -279,8 +279,9 @@ pub struct DatagenArgs {
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
     pub reference_spp: u32,
     /// Instead of generating: re-render the guide layers of the existing dataset's views in place
-    /// with the current guide pass (noisy renders and references are kept).
-    #[arg(long)]
+    /// with the current guide pass (noisy renders and references are kept). The dataset's own
+    /// settings apply, so the generation options cannot be given with it.
+    #[arg(long, conflicts_with_all = ["seed", "scenes", "views", "size", "reference_spp"])]
     pub refresh_guides: bool,
     /// Hide the progress bar.
     #[arg(long, short)]
