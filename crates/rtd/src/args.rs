@@ -77,6 +77,9 @@ pub struct TrainArgs {
     /// is the one its config describes.
     #[arg(long)]
     pub init: Option<PathBuf>,
+    /// Weight of an extra L1 term on the error's neighbour differences (sharper edges; 0: off).
+    #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
+    pub gradient_loss: f32,
     /// Continue the run in --output after an interruption.
     #[arg(long)]
     pub resume: bool,
@@ -429,6 +432,15 @@ fn parse_fov(s: &str) -> Result<f32, String> {
 }
 
 /// A learning rate in (0, 1].
+fn non_negative_weight(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
+    if (0.0..=100.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in [0, 100]"))
+    }
+}
+
 fn positive_rate(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
     if v > 0.0 && v <= 1.0 {

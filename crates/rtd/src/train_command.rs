@@ -64,6 +64,7 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         .config(config)
         .learning_rate(args.lr)
         .init(args.init.clone())
+        .gradient_loss(args.gradient_loss)
         .seed(args.seed)
         .steps(args.steps)
         .batch(args.batch as usize, args.crop as usize)
