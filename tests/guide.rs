@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use glam::{Vec2, Vec3, Vec4};
 use rtd::guide::{ao_at, pattern, AoPoint, GuidePass, GuideSettings};
-use rtd::render::{RenderScene, RenderSettings, SceneBvh};
+use rtd::render::{RenderScene, RenderSettings, SceneBvh, NO_TRIANGLE};
 use rtd::scene::{Camera, Material, Projection, Scene, Texture, TextureRef, Triangle, Wrap};
 
 fn guide(scene: &Scene, cam: &Camera, settings: GuideSettings) -> GuidePass {
@@ -70,7 +70,7 @@ fn ao_matches_analytic_values_next_to_walls_and_in_a_corner() {
     for (p, label) in
         [(Vec3::new(0.0, 0.0, 5.0), "0.3 from one wall"), (Vec3::new(-0.2999, 0.0, 1e-4), "in the corner")]
     {
-        let pt = AoPoint { p, p_error: Vec3::splat(1e-6), n: Vec3::Y, depth: 1.0 };
+        let pt = AoPoint { p, p_error: Vec3::splat(1e-6), n: Vec3::Y, depth: 1.0, triangle: NO_TRIANGLE };
         let ao = ao_at(&s, &bvh, &pt, &dirs, radius) as f64;
         let (dx, dz) = (p.x + 0.3, p.z);
         let expected = analytic_ao(|w| {
@@ -80,7 +80,7 @@ fn ao_matches_analytic_values_next_to_walls_and_in_a_corner() {
         assert!((ao - expected).abs() < 0.01, "{label}: AO {ao} vs analytic {expected}");
     }
     // The corner value is known in closed form: a quarter of the hemisphere stays open.
-    let pt = AoPoint { p: Vec3::new(-0.2999, 0.0, 1e-4), p_error: Vec3::splat(1e-6), n: Vec3::Y, depth: 1.0 };
+    let pt = AoPoint { p: Vec3::new(-0.2999, 0.0, 1e-4), p_error: Vec3::splat(1e-6), n: Vec3::Y, depth: 1.0, triangle: NO_TRIANGLE };
     assert!((ao_at(&s, &bvh, &pt, &dirs, radius) - 0.25).abs() < 0.01);
 }
 

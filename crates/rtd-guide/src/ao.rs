@@ -35,6 +35,9 @@ pub struct AoPoint {
     pub n: Vec3,
     /// Camera-space distance, for the upsampling weights.
     pub depth: f32,
+    /// The scene triangle the point lies on, which its rays leave and do not test
+    /// ([`rtd_render::NO_TRIANGLE`]: none).
+    pub triangle: u32,
 }
 
 /// The fixed direction pattern: `n` cosine-weighted directions from a Hammersley set (+z up).
@@ -60,7 +63,7 @@ pub fn ao_at(scene: &Scene, bvh: &SceneBvh, pt: &AoPoint, dirs: &[Vec3], radius:
     let mut open = 0u32;
     for d in dirs {
         let w = frame.to_world(*d);
-        if !bvh.occluded(scene, o, w, radius) {
+        if !bvh.occluded_leaving(scene, o, w, radius, pt.triangle) {
             open += 1;
         }
     }

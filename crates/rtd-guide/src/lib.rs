@@ -109,13 +109,13 @@ fn camera_depth(camera: &Camera, p: Vec3) -> f32 {
 
 /// The AO point of a centre sample, looking out of the side the camera sees.
 #[inline]
-fn ao_point(camera: &Camera, t: &rtd_scene::Triangle, b: Vec3, p: Vec3, ng: Vec3, depth: f32) -> AoPoint {
+fn ao_point(camera: &Camera, tri: u32, t: &rtd_scene::Triangle, b: Vec3, p: Vec3, ng: Vec3, depth: f32) -> AoPoint {
     let view = match camera.projection {
         Projection::Perspective { .. } => camera.position - p,
         Projection::Orthographic { .. } => -camera.forward,
     };
     let n = if ng.dot(view) < 0.0 { -ng } else { ng };
-    AoPoint { p, p_error: Surface::error_bound(t, b), n, depth }
+    AoPoint { p, p_error: Surface::error_bound(t, b), n, depth, triangle: tri }
 }
 
 /// True if the material's guide values vary over a triangle with its textures.
@@ -160,7 +160,7 @@ fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<ra
         albedo: m.albedo(&scene.textures, Vec2::ZERO),
         normal: shading_normal(t, first.bary, ng, None),
         depth,
-        centre: Some(ao_point(camera, t, centre, p_centre, ng, camera_depth(camera, p_centre))),
+        centre: Some(ao_point(camera, first.triangle, t, centre, p_centre, ng, camera_depth(camera, p_centre))),
     })
 }
 
@@ -246,7 +246,7 @@ impl GuidePass {
                 out.normal += shading_normal(t, b, ng, tangent) * inv;
                 out.depth += d * inv;
                 if s == n / 2 {
-                    out.centre = Some(ao_point(camera, t, b, p, ng, d));
+                    out.centre = Some(ao_point(camera, hit.triangle, t, b, p, ng, d));
                 }
             }
             out

@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use rtd_scene::{AlphaMode, Scene};
 
 use crate::bsdf::{Bsdf, BsdfParams};
-use crate::bvh::SceneBvh;
+use crate::bvh::{SceneBvh, NO_TRIANGLE};
 use crate::lights::LightSet;
 use crate::sampler::Sampler;
 use crate::sampling::{power_heuristic, Frame};
@@ -64,10 +64,12 @@ impl Integrator<'_> {
         let mut specular = true;
         let mut prev_pdf = 0.0f32;
         let mut prev_p = origin;
+        // The triangle the ray leaves (none for the camera ray).
+        let mut leaving = NO_TRIANGLE;
         let mut depth = 0u32;
         loop {
             rays += 1;
-            let Some(hit) = bvh.intersect(scene, o, d, f32::INFINITY) else {
+            let Some(hit) = bvh.intersect_leaving(scene, o, d, f32::INFINITY, leaving) else {
                 // A camera ray that escapes sees the environment: a light, white in the albedo
                 // AOV as emitters are (see `Material::albedo`), unless the environment is black.
                 if depth == 0 && lights.has_environment() {
@@ -136,9 +138,9 @@ impl Integrator<'_> {
                                 // Stop the shadow ray just short of the light point.
                                 Some(q) => {
                                     let (dir, dist) = (q - from).normalize_and_length();
-                                    bvh.occluded(scene, from, dir, dist * (1.0 - 1e-4))
+                                    bvh.occluded_leaving(scene, from, dir, dist * (1.0 - 1e-4), s.triangle)
                                 }
-                                None => bvh.occluded(scene, from, ls.wi, f32::INFINITY),
+                                None => bvh.occluded_leaving(scene, from, ls.wi, f32::INFINITY, s.triangle),
                             };
                             if !blocked {
                                 let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
@@ -164,6 +166,7 @@ impl Integrator<'_> {
             specular = bs.delta;
             prev_pdf = bs.pdf;
             prev_p = s.p;
+            leaving = s.triangle;
             o = s.spawn_origin(wi);
             d = wi;
             depth += 1;
