@@ -143,3 +143,30 @@ fn environment_map_matches_constant_environment() {
     let b = build(Environment::Map(img));
     assert!((a - b).abs() < 0.01 * a, "constant {a} vs map {b}");
 }
+
+/// A Lambertian ground of albedo ρ under a uniform environment of radiance 1 reflects ρ. The
+/// ground is a thousand units wide at height 0.1 and a small triangle lies far below it, so the
+/// ground's BVH box reaches above it. Rays leaving the ground used to hit the very triangle they
+/// left (the triangle test's rounding grows with the triangle's size, its offset with the
+/// height), which blocked light.
+#[test]
+fn large_ground_under_the_sky_reflects_its_albedo() {
+    let (rho, y) = (0.5f32, 0.1f32);
+    let mut scene = furnace(1.0);
+    scene.materials.push(Material { specular: 0.0, metallic: 0.0, ..material(Vec3::splat(rho), 1.0, 0.0, 0.0) });
+    let big = 1000.0;
+    quad(
+        &mut scene,
+        Vec3::new(-big, y, big),
+        Vec3::new(big, y, big),
+        Vec3::new(big, y, -big),
+        Vec3::new(-big, y, -big),
+        0,
+    );
+    tri(&mut scene, [Vec3::new(0.0, -50.0, 0.0), Vec3::new(1.0, -50.0, 0.0), Vec3::new(0.0, -50.0, 1.0)], 0);
+    let mut cam = Camera::look_at(Vec3::new(3.0, 1.0, 2.0), Vec3::new(3.0, -1.0, 2.0), 10.0);
+    cam.projection = Projection::Orthographic { ymag: 0.5 };
+    let film = render(scene, cam, RenderSettings::new(16, 16).seed(5), 256);
+    let m = mean(&film.beauty().pixels);
+    assert!((m - rho as f64).abs() < 0.01 * rho as f64, "measured {m}, expected {rho}");
+}
