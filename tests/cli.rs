@@ -123,7 +123,9 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["render", &c, "-o", o, "--report", "/nonexistent-dir/r.json"]), "r.json");
     assert_fails(&rtd(&["frobnicate"]), "frobnicate");
     // Refreshing a dataset's guides keeps its own generation settings.
-    for (flag, value) in [("--scenes", "3"), ("--size", "64"), ("--seed", "2"), ("--views", "1"), ("--reference-spp", "8")] {
+    for (flag, value) in
+        [("--scenes", "3"), ("--size", "64"), ("--seed", "2"), ("--views", "1"), ("--reference-spp", "8")]
+    {
         assert_fails(&rtd(&["datagen", "-o", o, "--refresh-guides", flag, value]), flag);
     }
     assert!(files_in(dir.path()).is_empty(), "a failed command left files: {:?}", files_in(dir.path()));

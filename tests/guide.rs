@@ -80,7 +80,13 @@ fn ao_matches_analytic_values_next_to_walls_and_in_a_corner() {
         assert!((ao - expected).abs() < 0.01, "{label}: AO {ao} vs analytic {expected}");
     }
     // The corner value is known in closed form: a quarter of the hemisphere stays open.
-    let pt = AoPoint { p: Vec3::new(-0.2999, 0.0, 1e-4), p_error: Vec3::splat(1e-6), n: Vec3::Y, depth: 1.0, triangle: NO_TRIANGLE };
+    let pt = AoPoint {
+        p: Vec3::new(-0.2999, 0.0, 1e-4),
+        p_error: Vec3::splat(1e-6),
+        n: Vec3::Y,
+        depth: 1.0,
+        triangle: NO_TRIANGLE,
+    };
     assert!((ao_at(&s, &bvh, &pt, &dirs, radius) - 0.25).abs() < 0.01);
 }
 

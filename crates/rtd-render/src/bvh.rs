@@ -313,8 +313,12 @@ mod tests {
         let mut s = Scene::default();
         let tri =
             |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 };
-        let (a, b, c, d) =
-            (Vec3::new(-0.4, 0.695, 0.1), Vec3::new(1.0, 0.695, 0.1), Vec3::new(1.0, 0.745, 0.1), Vec3::new(-0.4, 0.745, 0.1));
+        let (a, b, c, d) = (
+            Vec3::new(-0.4, 0.695, 0.1),
+            Vec3::new(1.0, 0.695, 0.1),
+            Vec3::new(1.0, 0.745, 0.1),
+            Vec3::new(-0.4, 0.745, 0.1),
+        );
         s.push_triangle(tri([a, b, c]));
         s.push_triangle(tri([a, c, d]));
         // A floor below and a ceiling out of the rays' reach, as in the room: the shelf's
