@@ -260,11 +260,14 @@ mod tests {
     use glam::Vec4;
     use rtd_scene::Triangle;
 
+    /// A triangle facing +z with material 0.
+    fn tri(p: [Vec3; 3]) -> Triangle {
+        Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 }
+    }
+
     fn quad_scene() -> Scene {
         // Two triangles sharing the diagonal of the unit square in the z=0 plane.
         let mut s = Scene::default();
-        let tri =
-            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 };
         s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]));
         s.push_triangle(tri([Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]));
         s.materials.push(Default::default());
@@ -311,8 +314,6 @@ mod tests {
         use crate::sampling::{sample_cosine_hemisphere, Frame};
         use crate::surface::{offset_origin, Surface};
         let mut s = Scene::default();
-        let tri =
-            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 };
         let (a, b, c, d) = (
             Vec3::new(-0.4, 0.695, 0.1),
             Vec3::new(1.0, 0.695, 0.1),
@@ -356,8 +357,6 @@ mod tests {
     #[test]
     fn tiny_scenes_keep_nearby_geometry() {
         let mut s = Scene::default();
-        let tri =
-            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 };
         let e = 1e-6;
         s.push_triangle(tri([Vec3::ZERO, Vec3::X * e, Vec3::Y * e]));
         s.materials.push(Default::default());
