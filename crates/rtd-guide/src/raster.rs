@@ -183,6 +183,8 @@ where
     let near = (far * 1e-6).max(f32::MIN_POSITIVE);
     let tris = setup(scene, cam, width, height, near);
     let offsets = sample_offsets();
+    // How far a sample can lie from its pixel's centre, along x or y.
+    let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
     let footprints = Footprints { tris: &tris };
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
@@ -217,7 +219,7 @@ where
             depth[..n].fill(f32::NEG_INFINITY);
             cover[..n].fill(Cover::NONE);
             for &i in &bins[(ty as u32 * tiles_x + tx) as usize] {
-                raster_tri(scene, &tris, i, x0, y0, tw, th, &offsets, &mut depth[..n], &mut cover[..n]);
+                raster_tri(scene, &tris, i, x0, y0, tw, th, &offsets, reach, &mut depth[..n], &mut cover[..n]);
             }
             for (k, px) in cover[..n].chunks(SAMPLES).enumerate() {
                 // Barycentrics only for the samples' final triangles.
@@ -273,6 +275,7 @@ fn raster_tri(
     tw: usize,
     th: usize,
     offsets: &[Vec2; SAMPLES],
+    reach: f32,
     depth: &mut [f32],
     cover: &mut [Cover],
 ) {
@@ -294,46 +297,53 @@ fn raster_tri(
     };
     let (a0, b0, c0) = plane(bx, by, cx, cy);
     let (a1, b1, c1) = plane(cx, cy, ax, ay);
+    // e2 has its own plane rather than 1 − e0 − e1: near the edge a–b of a triangle clipped at the
+    // near plane, e0 ≈ 1 and e2 is far below the rounding of 1 − e0 − e1 (a vertex projected
+    // millions of pixels away leaves e2 changing by ~1e-7 per pixel), which let samples up to
+    // a pixel outside that edge in.
+    let (a2, b2, c2) = plane(ax, ay, bx, by);
     // Depth key is affine in screen space: key = c.z + e0·(a.z − c.z) + e1·(b.z − c.z).
     let (ka, kb) = (a.z - c.z, b.z - c.z);
     // Reject the tile when one edge is negative everywhere samples can lie: x ∈ [−1, tw+1],
     // y ∈ [−1, th+1] in tile coordinates (pixel centres ± the filter radius).
     let (w, h) = (tw as f32 + 1.0, th as f32 + 1.0);
     let max_over = |ea: f32, eb: f32, ec: f32| ec + (ea * w).max(-ea) + (eb * h).max(-eb);
-    if max_over(a0, b0, c0) < 0.0 || max_over(a1, b1, c1) < 0.0 || max_over(-(a0 + a1), -(b0 + b1), 1.0 - c0 - c1) < 0.0
-    {
+    if max_over(a0, b0, c0) < 0.0 || max_over(a1, b1, c1) < 0.0 || max_over(a2, b2, c2) < 0.0 {
         return;
     }
-    let lo = a.min(b).min(c);
-    let hi = a.max(b).max(c);
-    let px0 = ((lo.x - 1.5).floor().max(x0 as f32) as usize).saturating_sub(x0 as usize);
-    let py0 = ((lo.y - 1.5).floor().max(y0 as f32) as usize).saturating_sub(y0 as usize);
-    let px1 = (((hi.x + 1.5).ceil() - x0 as f32).max(0.0) as usize).min(tw);
-    let py1 = (((hi.y + 1.5).ceil() - y0 as f32).max(0.0) as usize).min(th);
+    // The pixels whose samples can touch the triangle's bounding box: pixel p's samples lie
+    // within `reach` of its centre p + 0.5, so p spans [lo − 0.5 − reach, hi − 0.5 + reach]
+    // (widened by a margin far above the edge functions' rounding).
+    let lo = a.min(b).min(c) - Vec3::splat(0.5 + reach + 0.05);
+    let hi = a.max(b).max(c) + Vec3::splat(reach + 0.05 - 0.5);
+    let px0 = (lo.x.ceil().max(x0 as f32) as usize).saturating_sub(x0 as usize);
+    let py0 = (lo.y.ceil().max(y0 as f32) as usize).saturating_sub(y0 as usize);
+    let px1 = ((hi.x.floor() + 1.0 - x0 as f32).max(0.0) as usize).min(tw);
+    let py1 = ((hi.y.floor() + 1.0 - y0 as f32).max(0.0) as usize).min(th);
     let material = &scene.materials[scene.triangles[t.triangle as usize].material as usize];
     let cutoff = match material.alpha_mode {
         AlphaMode::Mask(c) => Some(c),
         _ => None,
     };
-    // Per-sample offsets of the two edge functions from the pixel centre.
+    // Per-sample offsets of the three edge functions from the pixel centre.
     let d0: [f32; SAMPLES] = std::array::from_fn(|s| a0 * offsets[s].x + b0 * offsets[s].y);
     let d1: [f32; SAMPLES] = std::array::from_fn(|s| a1 * offsets[s].x + b1 * offsets[s].y);
+    let d2: [f32; SAMPLES] = std::array::from_fn(|s| a2 * offsets[s].x + b2 * offsets[s].y);
     // Largest sample offsets of e0, e1 and e2: a pixel whose centre value plus the largest offset
-    // is negative has every sample outside that edge. (Addition is monotonic, so the e0/e1 tests
-    // are exact; e2 = 1 − e0 − e1 is rounded differently and gets a small safety margin.)
-    let (m0, m1) = (d0.iter().copied().fold(f32::MIN, f32::max), d1.iter().copied().fold(f32::MIN, f32::max));
-    let m2 = (0..SAMPLES).map(|s| -(d0[s] + d1[s])).fold(f32::MIN, f32::max);
+    // is negative has every sample outside that edge (exact: addition is monotonic).
+    let max = |d: &[f32; SAMPLES]| d.iter().copied().fold(f32::MIN, f32::max);
+    let (m0, m1, m2) = (max(&d0), max(&d1), max(&d2));
     for py in py0..py1 {
         for px in px0..px1 {
             let (cxp, cyp) = (px as f32 + 0.5, py as f32 + 0.5);
             let e0c = a0 * cxp + b0 * cyp + c0;
             let e1c = a1 * cxp + b1 * cyp + c1;
-            if e0c + m0 < 0.0 || e1c + m1 < 0.0 || 1.0 - e0c - e1c + m2 < -1e-4 * (1.0 + e0c.abs() + e1c.abs()) {
+            let e2c = a2 * cxp + b2 * cyp + c2;
+            if e0c + m0 < 0.0 || e1c + m1 < 0.0 || e2c + m2 < 0.0 {
                 continue;
             }
             for s in 0..SAMPLES {
-                let (e0, e1) = (e0c + d0[s], e1c + d1[s]);
-                let e2 = 1.0 - e0 - e1;
+                let (e0, e1, e2) = (e0c + d0[s], e1c + d1[s], e2c + d2[s]);
                 if e0 < 0.0 || e1 < 0.0 || e2 < 0.0 {
                     continue;
                 }
@@ -388,6 +398,51 @@ mod tests {
             let back = poly[0].0 * b.x + poly[1].0 * b.y + poly[2].0 * b.z;
             assert!((back - p).length() < 1e-6, "barycentrics must reproduce the clipped point");
         }
+    }
+
+    /// A ceiling triangle that reaches behind the camera is clipped at the near plane, which
+    /// projects its clipped corners millions of pixels off screen. Its visible edge must still be
+    /// drawn where it projects: no sample on the far side of that edge may be covered.
+    #[test]
+    fn near_clipped_triangles_do_not_cover_samples_past_their_edges() {
+        use rtd_scene::{Material, Triangle};
+        let mut scene = Scene::default();
+        scene.materials.push(Material::default());
+        // Ceiling at y = 1: edge a–b in view, c behind the camera.
+        let p = [Vec3::new(-2.0, 1.0, -3.0), Vec3::new(3.0, 1.0, -4.5), Vec3::new(0.5, 1.0, 5.0)];
+        scene.push_triangle(Triangle { p, n: [Vec3::NEG_Y; 3], uv: [Vec2::ZERO; 3], tangent: [glam::Vec4::ZERO; 3], material: 0 });
+        let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
+        let (w, h) = (97u32, 61u32);
+        // Screen positions of a and b in f64, as in `setup`.
+        let (sy, sx) = (1.0 / (30f64.to_radians()).tan(), 1.0 / ((30f64.to_radians()).tan() * w as f64 / h as f64));
+        let screen = |q: Vec3| {
+            let c = to_camera(&cam, q);
+            let (x, y, z) = (c.x as f64, c.y as f64, c.z as f64);
+            ((x * sx / z + 1.0) * 0.5 * w as f64, (1.0 - y * sy / z) * 0.5 * h as f64)
+        };
+        let (a, b) = (screen(p[0]), screen(p[1]));
+        // Signed distance in pixels from the line a–b, positive on the ceiling's side (up).
+        let (ex, ey) = (b.0 - a.0, b.1 - a.1);
+        let len = (ex * ex + ey * ey).sqrt();
+        let side = |x: f64, y: f64| ((x - a.0) * ey - (y - a.1) * ex) / len;
+        assert!(side(a.0, a.1 - 5.0) > 0.0, "the ceiling lies above its far edge on screen");
+        // Each band's output is its index, so that the callback knows its pixel.
+        let bands: Vec<usize> = (0..h.div_ceil(TILE) as usize).collect();
+        let offsets = sample_offsets();
+        let covered = std::sync::Mutex::new(Vec::new());
+        rasterize(&scene, &cam, w, h, bands, |band, i, px, _| {
+            let (x, y) = (i % w as usize, *band * TILE as usize + i / w as usize);
+            for (s, hit) in px.iter().enumerate() {
+                if hit.is_some() {
+                    let o = offsets[s];
+                    covered.lock().unwrap().push(side(x as f64 + 0.5 + o.x as f64, y as f64 + 0.5 + o.y as f64));
+                }
+            }
+        });
+        let covered = covered.into_inner().unwrap();
+        assert!(covered.len() > 1000, "the ceiling is drawn ({} samples)", covered.len());
+        let worst = covered.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(worst > -1e-3, "a covered sample lies {:.4} px past the ceiling's edge", -worst);
     }
 
     #[test]
