@@ -147,8 +147,8 @@ fn albedo_agrees_with_the_path_tracer_and_edges_line_up() {
 }
 
 /// Sparse AO with upsampling is as close to converged AO (256 rays at every pixel) as AO with
-/// the same 24 rays evaluated at every pixel. (The fixed pattern bands: dense 24-ray AO steps by
-/// 1/24 where one ray starts to hit, and the sparse lattice smooths those steps, so the
+/// the same rays evaluated at every pixel. (The fixed pattern bands: dense AO steps by one ray's
+/// share where a ray starts to hit, and the sparse lattice smooths those steps, so the
 /// converged AO is the fair reference.) Interpolating across surfaces, or too coarse a lattice,
 /// fails this.
 #[test]

@@ -8,12 +8,15 @@
 //! cell spans a steep change of AO, or with no neighbour on their surface are retried on a lattice
 //! of half the step, evaluated only around them, and what is still left is evaluated directly.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
-use rtd_render::sampling::{sample_cosine_hemisphere, Frame};
+use rtd_render::sampling::Frame;
 use rtd_render::surface::offset_origin;
 use rtd_render::SceneBvh;
 use rtd_scene::Scene;
+
+/// Occlusion rays per AO evaluation by default.
+pub const DEFAULT_AO_RAYS: u32 = 20;
 
 /// A sparse cell whose AO values spread more than this is evaluated per pixel.
 const REFINE_SPREAD: f32 = 0.15;
@@ -40,16 +43,23 @@ pub struct AoPoint {
     pub triangle: u32,
 }
 
-/// The fixed direction pattern: `n` cosine-weighted directions from a Hammersley set (+z up).
-/// Its first point (·, 0) would map to the rim of the concentric disk, a direction in the
-/// tangent plane whose hit or miss at a crease is decided by rounding in the BVH's box tests;
-/// it is lifted to the middle of its stratum instead.
+/// The fixed direction pattern: `n` cosine-weighted directions (+z up) from a Vogel
+/// (golden-angle) spiral on the unit disk, lifted to the hemisphere (Malley's method: uniform
+/// points on the disk become cosine-weighted directions above it). Point i sits at radius
+/// √((i + ½)/n), the middle of its ring of equal area, and angle i × the golden angle (π(3 − √5)),
+/// so every n covers the disk evenly. At the counts AO uses it is closer to converged AO than the
+/// Hammersley set it replaced: 20 spiral rays beat 24 Hammersley rays on every bundled scene.
+/// No direction lies in the tangent plane (the outermost is √(1/2n) above it), where a hit or
+/// miss at a crease would be decided by rounding in the BVH's box tests.
 pub fn pattern(n: u32) -> Vec<Vec3> {
-    let first = 0.5 / n.max(1).next_power_of_two() as f64;
-    (0..n)
+    let n = n.max(1) as f64;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n as u32)
         .map(|i| {
-            let v = if i == 0 { first } else { i.reverse_bits() as f64 / 4294967296.0 };
-            sample_cosine_hemisphere(Vec2::new((i as f32 + 0.5) / n as f32, v as f32))
+            // Uniform on the disk: equal-area radius, golden-angle turn.
+            let r2 = (i as f64 + 0.5) / n;
+            let (r, phi) = (r2.sqrt(), i as f64 * golden);
+            Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, (1.0 - r2).sqrt() as f32)
         })
         .collect()
 }
@@ -235,5 +245,25 @@ mod tests {
         let dirs = pattern(4096);
         let mean = dirs.iter().map(|d| d.z as f64).sum::<f64>() / dirs.len() as f64;
         assert!((mean - 2.0 / 3.0).abs() < 1e-3, "{mean}");
+    }
+
+    /// The default pattern is even enough for a straight occluder edge: a wall blocking every
+    /// direction whose disk projection lies beyond a line leaves open the cosine-weighted
+    /// fraction (acos d − d√(1 − d²))/π (a disk segment's share of the disk), and the 20 rays
+    /// get it within 0.1 at every angle and offset d. (The 20-point Hammersley set is off by
+    /// 0.14 and 24 of its points by 0.083; the spiral's 20 by 0.092.)
+    #[test]
+    fn default_pattern_sees_a_straight_occluder_edge_evenly() {
+        let dirs = pattern(DEFAULT_AO_RAYS);
+        let mut worst = 0f64;
+        for k in 0..720 {
+            let a = k as f64 * std::f64::consts::PI / 360.0;
+            for d in [0.0, 0.3, 0.6] {
+                let open = dirs.iter().filter(|v| v.x as f64 * a.cos() + v.y as f64 * a.sin() > d).count();
+                let exact = (f64::acos(d) - d * (1.0 - d * d).sqrt()) / std::f64::consts::PI;
+                worst = worst.max((open as f64 / dirs.len() as f64 - exact).abs());
+            }
+        }
+        assert!(worst <= 0.1, "worst half-plane error {worst}");
     }
 }

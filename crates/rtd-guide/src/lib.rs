@@ -24,7 +24,7 @@ use rtd_scene::{Camera, MaterialFootprint, Projection, Scene};
 /// of training views better than 0.25, 0.375, 0.75 or 1).
 pub const SAMPLE_FOOTPRINT: f32 = 0.5;
 
-pub use ao::{ao_at, pattern, AoPoint};
+pub use ao::{ao_at, pattern, AoPoint, DEFAULT_AO_RAYS};
 
 /// The default AO lattice step: every 4th pixel, or coarser for large images, keeping at least
 /// about 135 lattice points across the short side (more than twice the 64 of a 256² guide).
@@ -53,11 +53,11 @@ pub struct GuideSettings {
 }
 
 impl GuideSettings {
-    /// Defaults for a `width`×`height` guide: 24 AO rays, radius 10% of the scene, evaluated on a
+    /// Defaults for a `width`×`height` guide: [`DEFAULT_AO_RAYS`] AO rays, radius 10% of the scene, evaluated on a
     /// lattice every [`default_ao_step`] pixels.
     pub fn new(width: u32, height: u32) -> Self {
         let ao_step = default_ao_step(width, height);
-        GuideSettings { width, height, ao_rays: 24, ao_radius: None, ao_step, threads: None }
+        GuideSettings { width, height, ao_rays: DEFAULT_AO_RAYS, ao_radius: None, ao_step, threads: None }
     }
     /// Sets the AO ray count.
     pub fn ao_rays(mut self, n: u32) -> Self {

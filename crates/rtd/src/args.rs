@@ -389,7 +389,7 @@ pub struct GuideArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Occlusion rays per AO evaluation.
-    #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, default_value_t = rtd_guide::DEFAULT_AO_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub ao_rays: u32,
     /// AO radius in scene units (default: 10% of the scene's bounding-box diagonal).
     #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]
