@@ -10,6 +10,13 @@
 //! vertices scaled by a power of two `k` that brings the scene's coordinates to about 1e4, and
 //! rays enter traversal as (k·origin, unit direction, k·t). Power-of-two scaling is exact, so
 //! the triangle test still runs on the original world-space vertices and t values.
+//!
+//! Leaving a surface: the watertight test's t carries a rounding error that grows with the
+//! triangle's size, while a ray's offset origin clears the surface by an amount that grows with
+//! the point's coordinates. On a large triangle the first can exceed the second, so a ray leaving
+//! it could hit it again at t ≈ 0. Rays that leave a surface therefore name the triangle they
+//! leave ([`SceneBvh::intersect_leaving`], [`SceneBvh::occluded_leaving`]) and skip it: a ray
+//! starting on a flat triangle cannot meet it again. Camera rays pass [`NO_TRIANGLE`].
 
 use std::time::Duration;
 
