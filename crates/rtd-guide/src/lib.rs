@@ -53,8 +53,8 @@ pub struct GuideSettings {
 }
 
 impl GuideSettings {
-    /// Defaults for a `width`×`height` guide: [`DEFAULT_AO_RAYS`] AO rays, radius 10% of the scene, evaluated on a
-    /// lattice every [`default_ao_step`] pixels.
+    /// Defaults for a `width`×`height` guide: [`DEFAULT_AO_RAYS`] AO rays, radius 10% of the
+    /// scene, evaluated on a lattice every [`default_ao_step`] pixels.
     pub fn new(width: u32, height: u32) -> Self {
         let ao_step = default_ao_step(width, height);
         GuideSettings { width, height, ao_rays: DEFAULT_AO_RAYS, ao_radius: None, ao_step, threads: None }
