@@ -174,7 +174,7 @@ pub struct GuidePass {
     pub normal: HdrImage,
     /// Camera-space distance (0 where nothing is hit).
     pub depth: Vec<f32>,
-    /// Ambient occlusion in [0,1] (1 where nothing is hit).
+    /// Ambient occlusion in 0..=1 (1 where nothing is hit).
     pub ao: Vec<f32>,
     /// albedo × AO.
     pub guide: HdrImage,
