@@ -200,6 +200,20 @@ impl SceneBvh {
         o.is_finite().then(|| BvhRay::new(o.into(), dir.into(), 0.0, tmax * self.k))
     }
 
+    /// The traversal's test of BVH slot `slot` against ray `r` (scaled by `k`; `inv_k` = 1/k,
+    /// hoisted out of the traversal by the caller): its scaled hit distance within the ray's
+    /// current interval, or infinity for a miss, a cut-out, or the triangle `from` the ray leaves.
+    #[inline(always)]
+    fn slot_t(&self, scene: &Scene, shear: &RayShear, r: &BvhRay, slot: usize, from: u32, inv_k: f32) -> f32 {
+        if self.slot_tri[slot] == from {
+            return f32::INFINITY;
+        }
+        match shear.intersect(&self.verts[slot], r.tmin * inv_k, r.tmax * inv_k) {
+            Some((t, b)) if !self.cut_away(slot, b, scene) => t * self.k,
+            _ => f32::INFINITY,
+        }
+    }
+
     /// The closest hit along `origin + t·dir` for t in (0, tmax), or None.
     /// `dir` should be unit length (t is then a distance); non-finite input never hits.
     #[inline]
@@ -215,17 +229,9 @@ impl SceneBvh {
     pub fn intersect_leaving(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32, from: u32) -> Option<Hit> {
         let ray = self.bvh_ray(origin, dir, tmax)?;
         let shear = RayShear::new(origin, dir);
-        let (k, inv_k) = (self.k, 1.0 / self.k);
+        let inv_k = 1.0 / self.k;
         let mut hit = RayHit::none();
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| {
-            if self.slot_tri[slot] == from {
-                return f32::INFINITY;
-            }
-            match shear.intersect(&self.verts[slot], r.tmin * inv_k, r.tmax * inv_k) {
-                Some((t, b)) if !self.cut_away(slot, b, scene) => t * k,
-                _ => f32::INFINITY,
-            }
-        });
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| self.slot_t(scene, &shear, r, slot, from, inv_k));
         if !found {
             return None;
         }
@@ -248,16 +254,8 @@ impl SceneBvh {
     pub fn occluded_leaving(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32, from: u32) -> bool {
         let Some(ray) = self.bvh_ray(origin, dir, tmax) else { return false };
         let shear = RayShear::new(origin, dir);
-        let (k, inv_k) = (self.k, 1.0 / self.k);
-        !self.bvh.ray_traverse_miss(ray, |r, slot| {
-            if self.slot_tri[slot] == from {
-                return f32::INFINITY;
-            }
-            match shear.intersect(&self.verts[slot], r.tmin * inv_k, r.tmax * inv_k) {
-                Some((t, b)) if !self.cut_away(slot, b, scene) => t * k,
-                _ => f32::INFINITY,
-            }
-        })
+        let inv_k = 1.0 / self.k;
+        !self.bvh.ray_traverse_miss(ray, |r, slot| self.slot_t(scene, &shear, r, slot, from, inv_k))
     }
 }
 
