@@ -4,7 +4,8 @@
 //! AO(p) = (1/π) ∫ V(p, ω, R) cosθ dω, the cosine-weighted fraction of the hemisphere around the
 //! camera-facing geometric normal that is free of geometry within radius R. The same direction
 //! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
-//! noise). Pixels where surfaces meet (a neighbour on another surface within the AO radius), whose
+//! noise). A point's rays share one origin and go through the BVH as one bundle
+//! ([`SceneBvh::occluded_bundle_leaving`]). Pixels where surfaces meet (a neighbour on another surface within the AO radius), whose
 //! cell spans a steep change of AO, or with no neighbour on their surface are retried on a lattice
 //! of half the step, evaluated only around them, and what is still left is evaluated directly.
 
@@ -12,7 +13,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rtd_render::sampling::Frame;
 use rtd_render::surface::offset_origin;
-use rtd_render::SceneBvh;
+use rtd_render::{SceneBvh, MAX_BUNDLE};
 use rtd_scene::Scene;
 
 /// Occlusion rays per AO evaluation by default.
@@ -68,14 +69,16 @@ pub fn pattern(n: u32) -> Vec<Vec3> {
 pub fn ao_at(scene: &Scene, bvh: &SceneBvh, pt: &AoPoint, dirs: &[Vec3], radius: f32) -> f32 {
     let frame = Frame::from_normal(pt.n);
     // Every pattern direction leaves the surface on the normal's side, so all rays share one
-    // offset origin.
+    // offset origin, and they go through the BVH together, up to MAX_BUNDLE at a time.
     let o = offset_origin(pt.p, pt.p_error, pt.n, pt.n);
     let mut open = 0u32;
-    for d in dirs {
-        let w = frame.to_world(*d);
-        if !bvh.occluded_leaving(scene, o, w, radius, pt.triangle) {
-            open += 1;
+    for chunk in dirs.chunks(MAX_BUNDLE) {
+        let mut world = [Vec3::ZERO; MAX_BUNDLE];
+        for (w, d) in world.iter_mut().zip(chunk) {
+            *w = frame.to_world(*d);
         }
+        let blocked = bvh.occluded_bundle_leaving(scene, o, pt.n, &world[..chunk.len()], radius, pt.triangle);
+        open += chunk.len() as u32 - blocked.count_ones();
     }
     open as f32 / dirs.len() as f32
 }
@@ -87,11 +90,20 @@ struct Lattice {
     h: usize,
     step: usize,
     gw: usize,
+    /// Per pixel column x: its lattice column and fractional position in the cell; `rows` the
+    /// same per pixel row (tables, so that interpolating a pixel divides nothing).
+    cols: Vec<(usize, f32)>,
+    rows: Vec<(usize, f32)>,
 }
 
 impl Lattice {
     fn new(w: usize, h: usize, step: usize) -> Self {
-        Lattice { w, h, step, gw: w.div_ceil(step) + 1 }
+        let cell = |v: usize| {
+            let g = v / step;
+            (g, (v - g * step) as f32 / step as f32)
+        };
+        let (cols, rows) = ((0..w).map(cell).collect(), (0..h).map(cell).collect());
+        Lattice { w, h, step, gw: w.div_ceil(step) + 1, cols, rows }
     }
     /// Number of lattice points.
     fn len(&self) -> usize {
@@ -102,12 +114,10 @@ impl Lattice {
         let (gx, gy) = (g % self.gw, g / self.gw);
         (gy * self.step).min(self.h - 1) * self.w + (gx * self.step).min(self.w - 1)
     }
-    /// The four lattice points around pixel `i`, with their bilinear weights.
-    fn corners(&self, i: usize) -> [(usize, f32); 4] {
-        let (x, y) = (i % self.w, i / self.w);
-        let (gx, gy) = (x / self.step, y / self.step);
-        let s = self.step as f32;
-        let (fx, fy) = ((x - gx * self.step) as f32 / s, (y - gy * self.step) as f32 / s);
+    /// The four lattice points around pixel (x, y), with their bilinear weights.
+    #[inline]
+    fn corners(&self, x: usize, y: usize) -> [(usize, f32); 4] {
+        let ((gx, fx), (gy, fy)) = (self.cols[x], self.rows[y]);
         let g = gy * self.gw + gx;
         [
             (g, (1.0 - fx) * (1.0 - fy)),
@@ -134,13 +144,13 @@ fn same_surface(q: &AoPoint, pt: &AoPoint) -> bool {
 fn interpolate(
     lattice: &Lattice,
     values: &[Option<(AoPoint, f32)>],
-    i: usize,
+    (x, y): (usize, usize),
     pt: &AoPoint,
     radius: f32,
 ) -> Option<f32> {
     let (mut sum, mut wsum) = (0.0, 0.0);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for (g, bw) in lattice.corners(i) {
+    for (g, bw) in lattice.corners(x, y) {
         let Some((q, ao)) = values[g] else { continue };
         if !same_surface(&q, pt) {
             if (q.p - pt.p).length() < radius {
@@ -188,13 +198,17 @@ pub fn ao_image(
         let needed = if first {
             vec![true; lattice.len()]
         } else {
-            let pending: Vec<usize> = (0..w * h).into_par_iter().filter(|&i| ao[i].is_nan()).collect();
+            let pending: Vec<(usize, usize)> = ao
+                .par_chunks(w)
+                .enumerate()
+                .flat_map_iter(|(y, row)| row.iter().enumerate().filter(|(_, a)| a.is_nan()).map(move |(x, _)| (x, y)))
+                .collect();
             if pending.is_empty() {
                 break;
             }
             let mut needed = vec![false; lattice.len()];
-            for &i in &pending {
-                for (g, _) in lattice.corners(i) {
+            for &(x, y) in &pending {
+                for (g, _) in lattice.corners(x, y) {
                     needed[g] = true;
                 }
             }
@@ -214,9 +228,11 @@ pub fn ao_image(
                 exact[lattice.pixel(g)] = *a;
             }
         }
-        ao.par_iter_mut().enumerate().filter(|(_, a)| a.is_nan()).for_each(|(i, a)| {
-            if let Some(v) = point(i).and_then(|pt| interpolate(&lattice, &values, i, &pt, radius)) {
-                *a = v;
+        ao.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, a) in row.iter_mut().enumerate().filter(|(_, a)| a.is_nan()) {
+                if let Some(v) = point(y * w + x).and_then(|pt| interpolate(&lattice, &values, (x, y), &pt, radius)) {
+                    *a = v;
+                }
             }
         });
         level /= 2;

@@ -137,27 +137,52 @@ fn texture_footprint(
     m.footprint(&scene.textures, du, dv)
 }
 
-/// Fast path for the common pixel: every sample on one untextured triangle with flat normals.
-/// Albedo and normal are then constant over the pixel, so one evaluation is exact.
+/// Fast path for the common pixel: every sample on one triangle with flat normals and no normal
+/// map. The normal is then constant over the pixel, so one evaluation is exact; so is the
+/// albedo unless the material is textured, when each sample still looks its texture up
+/// through the footprint filters of the pixel's first sample, as the general path does.
 #[inline]
-fn shade_uniform(scene: &Scene, camera: &Camera, front: &[Vec3], px: &[Option<raster::SampleHit>]) -> Option<Shaded> {
+fn shade_one_triangle(
+    scene: &Scene,
+    camera: &Camera,
+    front: &[Vec3],
+    px: &[Option<raster::SampleHit>],
+    footprints: &raster::Footprints,
+) -> Option<Shaded> {
     let first = px[0]?;
     if px.iter().any(|h| h.is_none_or(|h| h.triangle != first.triangle)) {
         return None;
     }
     let t = &scene.triangles[first.triangle as usize];
     let m = &scene.materials[t.material as usize];
-    if has_textures(m) || t.n[0] != t.n[1] || t.n[1] != t.n[2] {
+    if m.normal_texture.is_some() || t.n[0] != t.n[1] || t.n[1] != t.n[2] {
         return None;
     }
     let ng = front[first.triangle as usize];
     let point = |b: Vec3| t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
-    // Depth is not affine over a pixel seen at a grazing angle: average it per sample.
-    let depth = px.iter().flatten().map(|h| camera_depth(camera, point(h.bary))).sum::<f32>() / px.len() as f32;
+    let inv = 1.0 / px.len() as f32;
+    let depth = |b: Vec3| camera_depth(camera, point(b));
+    // Depth is not affine over a pixel seen at a grazing angle: average it per sample (summed as
+    // the general path sums it where the albedo is too).
+    let (albedo, depth) = if has_textures(m) {
+        let f = if m.base_color_texture.is_some() {
+            texture_footprint(scene, t, m, &footprints.bary_steps(&first, SAMPLE_FOOTPRINT))
+        } else {
+            MaterialFootprint::POINT
+        };
+        px.iter().flatten().fold((Vec3::ZERO, 0.0), |(albedo, d), h| {
+            let b = h.bary;
+            let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+            (albedo + m.albedo_filtered(&scene.textures, uv, &f) * inv, d + depth(b) * inv)
+        })
+    } else {
+        let d = px.iter().flatten().map(|h| depth(h.bary)).sum::<f32>() / px.len() as f32;
+        (m.albedo(&scene.textures, Vec2::ZERO), d)
+    };
     let centre = px[raster::SAMPLES / 2]?.bary;
     let p_centre = point(centre);
     Some(Shaded {
-        albedo: m.albedo(&scene.textures, Vec2::ZERO),
+        albedo,
         normal: shading_normal(t, first.bary, ng, None),
         depth,
         centre: Some(ao_point(camera, first.triangle, t, centre, p_centre, ng, camera_depth(camera, p_centre))),
@@ -207,7 +232,7 @@ impl GuidePass {
         // Shade every sample with the renderer's surface code; keep the centre sample for AO.
         let shade = |px: &[Option<raster::SampleHit>], footprints: &raster::Footprints| {
             let mut out = Shaded::default();
-            if let Some(fast) = shade_uniform(scene, camera, &front, px) {
+            if let Some(fast) = shade_one_triangle(scene, camera, &front, px, footprints) {
                 return fast;
             }
             // Texture filters of the footprint, computed at a pixel's first sample on each textured
@@ -255,7 +280,8 @@ impl GuidePass {
         let pixels = w as usize * h as usize;
         let (mut albedo, mut normal) = (vec![Vec3::ZERO; pixels], vec![Vec3::ZERO; pixels]);
         let mut depth = vec![0.0f32; pixels];
-        let mut centre: Vec<Option<AoPoint>> = vec![None; pixels];
+        // Filled in parallel: 48 bytes a pixel, too much to page in on one thread.
+        let mut centre: Vec<Option<AoPoint>> = (0..pixels).into_par_iter().map(|_| None).collect();
         let rows = w as usize * raster::TILE as usize;
         let bands: Vec<Band> = albedo
             .chunks_mut(rows)

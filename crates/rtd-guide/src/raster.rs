@@ -91,26 +91,38 @@ fn to_camera(cam: &Camera, p: Vec3) -> Vec3 {
     Vec3::new(d.dot(cam.right), d.dot(cam.up), d.dot(cam.forward))
 }
 
-/// Clips a camera-space polygon against z ≥ near (Sutherland–Hodgman), carrying barycentrics.
-fn clip_near(poly: &[(Vec3, Vec3)], near: f32) -> Vec<(Vec3, Vec3)> {
-    let mut out = Vec::with_capacity(4);
-    for i in 0..poly.len() {
-        let (a, ba) = poly[i];
-        let (b, bb) = poly[(i + 1) % poly.len()];
+/// A camera-space triangle clipped against the near plane: up to 4 (position, barycentrics)
+/// vertices, `len` of them used.
+#[derive(Clone, Copy)]
+struct Clipped {
+    v: [(Vec3, Vec3); 4],
+    len: usize,
+}
+
+/// Clips a camera-space triangle against z ≥ near (Sutherland–Hodgman), carrying barycentrics.
+fn clip_near(tri: &[(Vec3, Vec3); 3], near: f32) -> Clipped {
+    let mut out = Clipped { v: [(Vec3::ZERO, Vec3::ZERO); 4], len: 0 };
+    let mut push = |v: (Vec3, Vec3)| {
+        out.v[out.len] = v;
+        out.len += 1;
+    };
+    for i in 0..3 {
+        let (a, ba) = tri[i];
+        let (b, bb) = tri[(i + 1) % 3];
         let (ina, inb) = (a.z >= near, b.z >= near);
         if ina {
-            out.push((a, ba));
+            push((a, ba));
         }
         if ina != inb {
             let t = (near - a.z) / (b.z - a.z);
-            out.push((a.lerp(b, t), ba.lerp(bb, t)));
+            push((a.lerp(b, t), ba.lerp(bb, t)));
         }
     }
     out
 }
 
 /// Projects and clips every triangle (alpha-blended ones too: they are drawn as opaque, like the
-/// path tracer's first-hit AOVs).
+/// path tracer's first-hit AOVs), in parallel, keeping the scene's order.
 fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec<ScreenTri> {
     let aspect = width as f32 / height as f32;
     let (sx, sy, persp) = match cam.projection {
@@ -125,32 +137,33 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
         let key = if persp { 1.0 / c.z } else { -c.z };
         (Vec3::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32, key), w)
     };
-    let mut out = Vec::with_capacity(scene.triangles.len());
-    for (i, t) in scene.triangles.iter().enumerate() {
+    // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there).
+    let near = if persp { near } else { 0.0 };
+    // One triangle's screen triangles: none, one, or two (a clipped quad, fan-triangulated).
+    let project = |i: usize, t: &rtd_scene::Triangle| -> [Option<ScreenTri>; 2] {
         let c = t.p.map(|p| to_camera(cam, p));
         let base = [(c[0], Vec3::X), (c[1], Vec3::Y), (c[2], Vec3::Z)];
-        // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there).
-        let near = if persp { near } else { 0.0 };
         if c.iter().all(|v| v.z < near) {
-            continue;
+            return [None; 2];
         }
-        let poly = if c.iter().all(|v| v.z >= near) { base.to_vec() } else { clip_near(&base, near) };
-        if poly.len() < 3 {
-            continue;
-        }
-        let proj: Vec<(Vec3, f32, Vec3)> = poly
-            .iter()
-            .map(|&(c, b)| {
-                let (s, w) = to_screen(c);
-                (s, w, b)
-            })
-            .collect();
-        // Fan-triangulate the clipped polygon (3 or 4 vertices).
-        for k in 1..proj.len() - 1 {
+        let poly = if c.iter().all(|v| v.z >= near) {
+            Clipped { v: [base[0], base[1], base[2], base[2]], len: 3 }
+        } else {
+            clip_near(&base, near)
+        };
+        let proj = poly.v.map(|(c, b)| {
+            let (s, w) = to_screen(c);
+            (s, w, b)
+        });
+        std::array::from_fn(|k| {
+            let k = k + 1;
+            if k + 1 >= poly.len {
+                return None;
+            }
             let tri = [proj[0], proj[k], proj[k + 1]];
             let v = tri.map(|x| x.0);
             if !v.iter().all(|p| p.is_finite()) {
-                continue;
+                return None;
             }
             // e0 = area(p, b, c) / area(a, b, c) and e1 = area(p, c, a) / area(a, b, c) are
             // affine in screen (x, y); their gradients (in f64: clipped vertices can be far off).
@@ -158,10 +171,10 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
             let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
             let grad =
                 [(b.1 - c.1) / area, (c.0 - b.0) / area, (c.1 - a.1) / area, (a.0 - c.0) / area].map(|g| g as f32);
-            out.push(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2), grad, triangle: i as u32 });
-        }
-    }
-    out
+            Some(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2), grad, triangle: i as u32 })
+        })
+    };
+    scene.triangles.par_iter().enumerate().flat_map_iter(|(i, t)| project(i, t).into_iter().flatten()).collect()
 }
 
 /// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
@@ -392,8 +405,8 @@ mod tests {
             (Vec3::new(1.0, 0.0, 1.0), Vec3::Z),
         ];
         let out = clip_near(&poly, 0.0);
-        assert_eq!(out.len(), 4);
-        for (p, b) in out {
+        assert_eq!(out.len, 4);
+        for &(p, b) in &out.v[..out.len] {
             assert!(p.z >= -1e-6);
             let back = poly[0].0 * b.x + poly[1].0 * b.y + poly[2].0 * b.z;
             assert!((back - p).length() < 1e-6, "barycentrics must reproduce the clipped point");

@@ -27,6 +27,9 @@ use obvhs::triangle::Triangle as BvhTriangle;
 use obvhs::BvhBuildParams;
 use rtd_scene::{AlphaMode, Scene};
 
+mod bundle;
+pub use bundle::MAX_BUNDLE;
+
 /// A triangle index that matches no triangle: rays that leave no surface.
 pub const NO_TRIANGLE: u32 = u32::MAX;
 
@@ -42,7 +45,7 @@ pub struct Hit {
 }
 
 /// Per-ray constants of the watertight test.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 struct RayShear {
     origin: Vec3A,
     kx: usize,
@@ -205,11 +208,18 @@ impl SceneBvh {
     /// current interval, or infinity for a miss, a cut-out, or the triangle `from` the ray leaves.
     #[inline(always)]
     fn slot_t(&self, scene: &Scene, shear: &RayShear, r: &BvhRay, slot: usize, from: u32, inv_k: f32) -> f32 {
+        self.slot_t_within(scene, shear, r.tmin * inv_k, r.tmax * inv_k, slot, from) * self.k
+    }
+
+    /// [`SceneBvh::slot_t`] in world space: the hit distance of slot `slot` in (tmin, tmax), or
+    /// infinity.
+    #[inline(always)]
+    fn slot_t_within(&self, scene: &Scene, shear: &RayShear, tmin: f32, tmax: f32, slot: usize, from: u32) -> f32 {
         if self.slot_tri[slot] == from {
             return f32::INFINITY;
         }
-        match shear.intersect(&self.verts[slot], r.tmin * inv_k, r.tmax * inv_k) {
-            Some((t, b)) if !self.cut_away(slot, b, scene) => t * self.k,
+        match shear.intersect(&self.verts[slot], tmin, tmax) {
+            Some((t, b)) if !self.cut_away(slot, b, scene) => t,
             _ => f32::INFINITY,
         }
     }

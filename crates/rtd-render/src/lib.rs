@@ -17,7 +17,7 @@ pub mod sampling;
 pub mod surface;
 
 pub use bsdf::{Bsdf, BsdfParams, BsdfSample};
-pub use bvh::{SceneBvh, NO_TRIANGLE};
+pub use bvh::{SceneBvh, MAX_BUNDLE, NO_TRIANGLE};
 pub use film::Film;
 pub use lights::LightSet;
 pub use render::{

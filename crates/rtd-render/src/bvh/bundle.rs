@@ -1,0 +1,276 @@
+//! Occlusion of a bundle of rays from one origin in a single traversal (ambient occlusion).
+//!
+//! An AO evaluation shoots a fixed pattern of rays from one point. Traced one at a time, every
+//! ray walks the same nodes near the origin and decodes the same quantised child boxes again.
+//! [`SceneBvh::occluded_bundle_leaving`] walks the tree once for all of them: each stack entry
+//! carries the mask of rays whose boxes reached it, each node's child boxes are decoded once
+//! and slab-tested against those rays four children at a time, and each leaf triangle is tested
+//! only against the rays that reached its leaf and are still open. A ray leaves the bundle at
+//! its first hit. The box test is obvhs's own arithmetic (same products, same order, same
+//! t ≥ 1e-4 cull), and occlusion does not depend on the order triangles are met in, so the
+//! answer is the one [`SceneBvh::occluded_leaving`] gives ray by ray, with one exception: when
+//! all rays rise above the surface's plane, triangles wholly below it are not tested, because
+//! they cannot block. Ray by ray, the watertight test's rounding can report such a triangle (a
+//! coplanar neighbour of the one left) as a hit at t ≈ 0; the bundle does not.
+//!
+//! Measured (one thread, 20 pattern rays at the camera's first hits of 128² pixels of each
+//! bundled scene): 0.48–0.76× the time of tracing the same rays one by one.
+
+use glam::{Vec3, Vec3A, Vec4};
+use rtd_scene::Scene;
+
+use super::{RayShear, SceneBvh};
+
+/// Most rays in one bundle (one bit each in a `u32` mask).
+pub const MAX_BUNDLE: usize = 32;
+
+/// obvhs's near cull of node intervals, in BVH space (see the module doc of `bvh`).
+const NODE_TMIN: f32 = 1e-4;
+
+/// 1/d per component as obvhs's `Ray::new` computes it (components within f32::EPSILON of 0
+/// give ±1/EPSILON), in one vector division.
+#[inline]
+fn inverse(d: Vec3A) -> Vec3A {
+    let tiny = d.abs().cmple(Vec3A::splat(f32::EPSILON));
+    Vec3A::select(tiny, d.signum() * (1.0 / f32::EPSILON), Vec3A::ONE / d)
+}
+
+/// Iterates the set bits of `m`, lowest first.
+#[inline]
+fn bits(mut m: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            i
+        })
+    })
+}
+
+/// Four children's quantised planes along one axis, as floats.
+#[inline(always)]
+fn quad(q: &[u8; 8], g: usize) -> Vec4 {
+    Vec4::new(q[4 * g] as f32, q[4 * g + 1] as f32, q[4 * g + 2] as f32, q[4 * g + 3] as f32)
+}
+
+impl SceneBvh {
+    /// Which of the rays `origin + t·dirs[i]`, t in (0, tmax), are blocked, as a bit mask (bit
+    /// i for `dirs[i]`), for rays that leave scene triangle `from` (not tested, as in
+    /// [`SceneBvh::occluded_leaving`]) on the side `normal` points to. The answer of that call
+    /// ray by ray, in one traversal, except for rounding-level hits on triangles wholly below
+    /// the plane through `origin` with this normal, which are skipped when every ray rises
+    /// above it (see the module doc). Unusable directions (zero or non-finite) are never
+    /// blocked.
+    ///
+    /// # Panics
+    /// If more than [`MAX_BUNDLE`] directions are given.
+    pub fn occluded_bundle_leaving(
+        &self,
+        scene: &Scene,
+        origin: Vec3,
+        normal: Vec3,
+        dirs: &[Vec3],
+        tmax: f32,
+        from: u32,
+    ) -> u32 {
+        assert!(dirs.len() <= MAX_BUNDLE, "at most {MAX_BUNDLE} rays per bundle");
+        let nodes = &self.bvh.nodes;
+        // The shared origin in BVH space (see `bvh_ray`).
+        let o = Vec3A::from(origin * self.k);
+        if nodes.is_empty() || !o.is_finite() || tmax.is_nan() {
+            return 0;
+        }
+        let tmax_k = tmax * self.k;
+        // Per ray: 1/direction as obvhs computes it, its signs and the triangle test's shear;
+        // `live` marks the usable directions.
+        let mut live = 0u32;
+        let mut inv = [Vec3A::ZERO; MAX_BUNDLE];
+        let mut neg = [[false; 3]; MAX_BUNDLE];
+        let mut shear = [RayShear::default(); MAX_BUNDLE];
+        for (i, d) in dirs.iter().enumerate() {
+            if !d.is_finite() || *d == Vec3::ZERO {
+                continue;
+            }
+            live |= 1 << i;
+            inv[i] = inverse(Vec3A::from(*d));
+            neg[i] = [d.x < 0.0, d.y < 0.0, d.z < 0.0];
+            shear[i] = RayShear::new(origin, *d);
+        }
+        // When every ray rises above the plane through the origin with this normal, a triangle
+        // wholly below that plane cannot block any of them (the rays' points have
+        // (x − origin)·normal = t (d·normal) > 0): such triangles, like the facets around the
+        // origin on a curved or flat surface, are skipped without a ray test.
+        let cull_below = dirs.iter().all(|d| d.dot(normal) > 0.0);
+        let origin_a = Vec3A::from(origin);
+        let normal_a = Vec3A::from(normal);
+        let mut blocked = 0u32;
+        // Depth-first over (node, rays that reached it); a BVH8 is shallow, so this stays small.
+        let mut stack: Vec<(u32, u32)> = Vec::with_capacity(64);
+        stack.push((0, live));
+        while let Some((index, reached)) = stack.pop() {
+            let active = reached & !blocked;
+            if active == 0 {
+                continue;
+            }
+            let node = &nodes[index as usize];
+            // Child boxes in the node's quantised frame: world = p + q·extent. Decoded once for
+            // all rays (obvhs decodes them per ray).
+            let planes = [0, 1].map(|g| {
+                [
+                    [quad(&node.child_min_x, g), quad(&node.child_max_x, g)],
+                    [quad(&node.child_min_y, g), quad(&node.child_max_y, g)],
+                    [quad(&node.child_min_z, g), quad(&node.child_max_z, g)],
+                ]
+            });
+            let extent = node.compute_extent();
+            let to_node = Vec3A::from(node.p) - o;
+            // Slab test of each active ray against the children, four at a time:
+            // t = q · (extent / d) + (p − o) / d per plane, entry = max of near planes and the
+            // cull distance, exit = min of far planes and tmax.
+            let mut child_rays = [0u32; 8];
+            for r in bits(active) {
+                let scale = extent * inv[r];
+                let shift = to_node * inv[r];
+                for (g, axes) in planes.iter().enumerate() {
+                    let mut enter = Vec4::splat(NODE_TMIN);
+                    let mut exit = Vec4::splat(tmax_k);
+                    for a in 0..3 {
+                        let [lo, hi] = axes[a];
+                        let (near, far) = if neg[r][a] { (hi, lo) } else { (lo, hi) };
+                        let (s, t) = (Vec4::splat(scale[a]), Vec4::splat(shift[a]));
+                        enter = enter.max(near * s + t);
+                        exit = exit.min(far * s + t);
+                    }
+                    for j in bits(enter.cmple(exit).bitmask()) {
+                        child_rays[4 * g + j] |= 1 << r;
+                    }
+                }
+            }
+            for (c, &rays_here) in child_rays.iter().enumerate() {
+                if rays_here == 0 || node.is_child_empty(c) {
+                    continue;
+                }
+                if !node.is_leaf(c) {
+                    stack.push((node.child_node_index(c), rays_here));
+                    continue;
+                }
+                let (first, count) = node.child_primitives(c);
+                for slot in first as usize..(first + count) as usize {
+                    if cull_below && self.verts[slot].iter().all(|v| (*v - origin_a).dot(normal_a) < 0.0) {
+                        continue;
+                    }
+                    for r in bits(rays_here & !blocked) {
+                        if self.slot_t_within(scene, &shear[r], 0.0, tmax, slot, from) < f32::INFINITY {
+                            blocked |= 1 << r;
+                        }
+                    }
+                }
+            }
+            if blocked == live {
+                break;
+            }
+        }
+        blocked
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{sample_cosine_hemisphere, Frame};
+    use glam::{Vec2, Vec4 as V4};
+    use rtd_scene::Triangle;
+
+    /// A small PCG-style generator for test input.
+    fn rng(seed: u64) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    /// A soup of random triangles of mixed sizes in the unit cube, with a floor under it.
+    fn soup(n: usize, seed: u64) -> Scene {
+        let mut next = rng(seed);
+        let mut s = Scene::default();
+        s.materials.push(Default::default());
+        let tri =
+            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [V4::ZERO; 3], material: 0 };
+        s.push_triangle(tri([Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, -1.0, 0.0), Vec3::new(2.0, 2.0, 0.0)]));
+        s.push_triangle(tri([Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, 2.0, 0.0), Vec3::new(-1.0, 2.0, 0.0)]));
+        for _ in 0..n {
+            let c = Vec3::new(next(), next(), next());
+            let size = 0.02 + 0.2 * next() * next();
+            let mut v = || c + (Vec3::new(next(), next(), next()) - 0.5) * size;
+            s.push_triangle(tri([v(), v(), v()]));
+        }
+        s
+    }
+
+    /// The bundle answers exactly as the rays one by one, on points of the floor and of the
+    /// soup, for bundles of every size up to 32, radii short and long, and rays that leave
+    /// their triangle.
+    #[test]
+    fn bundle_matches_single_rays() {
+        for (n, seed) in [(3, 1), (200, 2), (3000, 3)] {
+            let s = soup(n, seed);
+            let bvh = SceneBvh::build(&s);
+            let mut next = rng(seed + 100);
+            let (mut checked, mut hit) = (0, 0);
+            for k in 0..300 {
+                // A point on a random triangle, leaving it along its normal's side.
+                let from = (next() * s.triangles.len() as f32) as usize % s.triangles.len();
+                let t = &s.triangles[from];
+                let (u, v) = (next(), next());
+                let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+                let p = t.p[0] * (1.0 - u - v) + t.p[1] * u + t.p[2] * v;
+                let ng = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).normalize();
+                let ng = if next() < 0.5 { ng } else { -ng };
+                let o = p + ng * 1e-4;
+                let frame = Frame::from_normal(ng);
+                let count = 1 + k % MAX_BUNDLE;
+                let dirs: Vec<Vec3> =
+                    (0..count).map(|_| frame.to_world(sample_cosine_hemisphere(Vec2::new(next(), next())))).collect();
+                let radius = [0.05, 0.3, f32::INFINITY][k % 3];
+                let mask = bvh.occluded_bundle_leaving(&s, o, ng, &dirs, radius, from as u32);
+                for (i, d) in dirs.iter().enumerate() {
+                    let single = bvh.occluded_leaving(&s, o, *d, radius, from as u32);
+                    assert_eq!(mask >> i & 1 == 1, single, "scene {n}, point {k}, ray {i}");
+                    checked += 1;
+                    hit += single as u32;
+                }
+            }
+            // Both answers occur, so the comparison means something.
+            assert!(hit > 0 && hit < checked, "scene {n}: {hit} of {checked} blocked");
+        }
+    }
+
+    /// The vector 1/d is obvhs's, component for component.
+    #[test]
+    fn inverse_matches_obvhs() {
+        let mut next = rng(9);
+        for k in 0..10_000 {
+            let scale = [1.0, 1e-8, 1e-6, 0.0][k % 4];
+            let d = Vec3A::new(next() - 0.5, (next() - 0.5) * scale, -(next() - 0.5) * scale);
+            let want = obvhs::ray::Ray::new(Vec3A::ZERO, d, 0.0, 1.0).inv_direction;
+            assert_eq!(inverse(d).to_array(), want.to_array(), "{d}");
+        }
+    }
+
+    #[test]
+    fn unusable_rays_and_empty_scenes_are_never_blocked() {
+        let s = soup(50, 7);
+        let bvh = SceneBvh::build(&s);
+        let dirs = [Vec3::NEG_Z, Vec3::ZERO, Vec3::new(f32::NAN, 0.0, -1.0), Vec3::NEG_Z];
+        assert_eq!(
+            bvh.occluded_bundle_leaving(&s, Vec3::new(0.5, 0.5, 2.0), Vec3::NEG_Z, &dirs, f32::INFINITY, u32::MAX),
+            0b1001
+        );
+        let empty = Scene::default();
+        assert_eq!(
+            SceneBvh::build(&empty).occluded_bundle_leaving(&empty, Vec3::ZERO, Vec3::Z, &dirs, 1.0, u32::MAX),
+            0
+        );
+    }
+}
