@@ -5,9 +5,10 @@
 //! camera-facing geometric normal that is free of geometry within radius R. The same direction
 //! pattern is used everywhere, so the result is deterministic and spatially smooth (no per-pixel
 //! noise). A point's rays share one origin and go through the BVH as one bundle
-//! ([`SceneBvh::occluded_bundle_leaving`]). Pixels where surfaces meet (a neighbour on another surface within the AO radius), whose
-//! cell spans a steep change of AO, or with no neighbour on their surface are retried on a lattice
-//! of half the step, evaluated only around them, and what is still left is evaluated directly.
+//! ([`SceneBvh::occluded_bundle_leaving`]). Pixels where surfaces meet (a neighbour on another
+//! surface within the AO radius), whose cell spans a steep change of AO, or with no neighbour on
+//! their surface are retried on a lattice of half the step, evaluated only around them, and what
+//! is still left is evaluated directly.
 
 use glam::Vec3;
 use rayon::prelude::*;

@@ -276,7 +276,7 @@ mod tests {
     use rtd_scene::Triangle;
 
     /// A triangle facing +z with material 0.
-    fn tri(p: [Vec3; 3]) -> Triangle {
+    pub(super) fn tri(p: [Vec3; 3]) -> Triangle {
         Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 }
     }
 

@@ -173,9 +173,9 @@ impl SceneBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::tests::tri;
     use crate::sampling::{sample_cosine_hemisphere, Frame};
-    use glam::{Vec2, Vec4 as V4};
-    use rtd_scene::Triangle;
+    use glam::Vec2;
 
     /// A small PCG-style generator for test input.
     fn rng(seed: u64) -> impl FnMut() -> f32 {
@@ -191,8 +191,6 @@ mod tests {
         let mut next = rng(seed);
         let mut s = Scene::default();
         s.materials.push(Default::default());
-        let tri =
-            |p: [Vec3; 3]| Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [V4::ZERO; 3], material: 0 };
         s.push_triangle(tri([Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, -1.0, 0.0), Vec3::new(2.0, 2.0, 0.0)]));
         s.push_triangle(tri([Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, 2.0, 0.0), Vec3::new(-1.0, 2.0, 0.0)]));
         for _ in 0..n {
