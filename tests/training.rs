@@ -1,11 +1,12 @@
 //! Dataset generation and training, end to end on tiny sizes: resumable datagen with a
-//! by-scene split, `rtd train --quick` lowering its loss, deterministic and resumable training.
+//! by-scene split, `rtd train --quick` lowering its loss, deterministic and resumable training,
+//! fine-tuning and growing a trained network.
 
 use std::path::Path;
 use std::process::Command;
 
 use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest};
-use rtd::train::train::{train, TrainOptions};
+use rtd::train::train::{train, GrowLevel, TrainOptions};
 use rtd::train::Quiet;
 
 fn tiny_dataset(dir: &Path) -> Manifest {
@@ -143,6 +144,15 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let cfg = std::fs::read_to_string(dir.path().join("e/model.json")).unwrap();
     let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
     assert!(cfg.demodulates());
+    // Grown by a coarser level (`rtd train --grow`): a three-level network that starts out
+    // computing what a does.
+    let grown_config = rtd::denoise::grow::grown_config(&tiny_config(), 8, 1);
+    let grown = tuned.clone().config(grown_config.clone()).grow(Some(GrowLevel { channels: 8, blocks: 1 }));
+    train(&data, &dir.path().join("g"), &grown, false, &Quiet).unwrap();
+    let cfg = std::fs::read_to_string(dir.path().join("g/model.json")).unwrap();
+    let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
+    assert_eq!((cfg.channels.len(), &cfg), (3, &grown_config));
+    assert!(diff(&run("a"), &run("g")) < 1e-4, "the grown network did not start from a's function");
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();

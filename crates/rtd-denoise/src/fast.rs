@@ -376,6 +376,7 @@ impl FastDecoder {
 pub struct FastNet {
     stem: Conv,
     encoders: Vec<FastBlock>,
+    level_blocks: Vec<Vec<FastBlock>>,
     bottleneck: Vec<FastBlock>,
     decoders: Vec<FastDecoder>,
     output: Conv,
@@ -387,6 +388,7 @@ impl FastNet {
         FastNet {
             stem: Conv::from(&net.stem),
             encoders: net.encoders.iter().map(FastBlock::from).collect(),
+            level_blocks: net.level_blocks.iter().map(|l| l.iter().map(FastBlock::from).collect()).collect(),
             bottleneck: net.bottleneck.iter().map(FastBlock::from).collect(),
             decoders: net.decoders.iter().map(FastDecoder::from).collect(),
             output: Conv::from(&net.output),
@@ -406,6 +408,10 @@ impl FastNet {
             }
             let next = enc.forward(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
+            for b in self.level_blocks.get(l).into_iter().flatten() {
+                let next = b.forward(&y, scratch);
+                scratch.recycle(std::mem::replace(&mut y, next));
+            }
         }
         for b in &self.bottleneck {
             let next = b.forward(&y, scratch);
@@ -436,6 +442,7 @@ mod tests {
         for config in [
             DenoiserConfig::new(vec![8, 12, 16]).with_bottleneck_blocks(2),
             DenoiserConfig::new(vec![8]).with_bottleneck_blocks(1),
+            DenoiserConfig::new(vec![8, 12, 16]).with_level_blocks(Some(vec![0, 2])),
         ] {
             let net = config.init(&device);
             let (w, h, c) = (20usize, 12usize, config.input_channels);

@@ -23,6 +23,10 @@ pub struct DenoiserConfig {
     /// Inception blocks at the coarsest level.
     #[config(default = 2)]
     pub bottleneck_blocks: usize,
+    /// Inception blocks after the encoder at each finer level, full resolution first (one
+    /// entry per level but the coarsest). Absent (older model files) means none. A network
+    /// grown by [`crate::grow::add_level`] keeps its old bottleneck here.
+    pub level_blocks: Option<Vec<usize>>,
     /// Length k of the 1×k then k×1 branch.
     #[config(default = 5)]
     pub prong: usize,
@@ -52,6 +56,15 @@ impl DenoiserConfig {
         self.demodulate.unwrap_or(false)
     }
 
+    /// Inception blocks after the encoder at level `l` (the bottleneck at the coarsest level).
+    pub fn blocks_at(&self, l: usize) -> usize {
+        if l + 1 == self.channels.len() {
+            self.bottleneck_blocks
+        } else {
+            self.level_blocks.as_ref().and_then(|b| b.get(l).copied()).unwrap_or(0)
+        }
+    }
+
     /// The resolution factor the image size must be padded to: 2^(levels−1).
     pub fn alignment(&self) -> usize {
         1 << (self.channels.len() - 1)
@@ -66,9 +79,13 @@ impl DenoiserConfig {
         for l in 1..levels {
             encoders.push(InceptionBlock::new(c[l - 1], c[l], 1, self.prong, device));
         }
-        let bottleneck = (0..self.bottleneck_blocks)
-            .map(|i| InceptionBlock::new(c[levels - 1], c[levels - 1], 2 + i % 2 * 2, self.prong, device))
-            .collect();
+        let blocks = |l: usize| -> Vec<InceptionBlock> {
+            (0..self.blocks_at(l))
+                .map(|i| InceptionBlock::new(c[l], c[l], block_dilation(i), self.prong, device))
+                .collect()
+        };
+        let level_blocks = (0..levels - 1).map(blocks).collect();
+        let bottleneck = blocks(levels - 1);
         let decoders = (0..levels - 1)
             .map(|l| Decoder {
                 fuse: conv(c[l + 1] + c[l], c[l], 1, 1, device),
@@ -76,7 +93,15 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
-        DenoiserNet { stem, encoders, bottleneck, decoders, output, downsample: MaxPool2dConfig::new([2, 2]).init() }
+        DenoiserNet {
+            stem,
+            encoders,
+            level_blocks,
+            bottleneck,
+            decoders,
+            output,
+            downsample: MaxPool2dConfig::new([2, 2]).init(),
+        }
     }
 
     /// An upper bound on how far (in full-resolution pixels) an input pixel can influence an
@@ -90,9 +115,9 @@ impl DenoiserConfig {
             let s = 1 << l;
             r += s / 2 + block(1, s); // 2× max-pool, then a block at scale s
         }
-        let s = 1 << (levels - 1);
-        for i in 0..self.bottleneck_blocks {
-            r += block(2 + i % 2 * 2, s);
+        // The deepest path also passes every level's blocks (the bottleneck included).
+        for l in 0..levels {
+            r += (0..self.blocks_at(l)).map(|i| block(block_dilation(i), 1 << l)).sum::<usize>();
         }
         for l in (0..levels - 1).rev() {
             r += (1 << l) * 2; // nearest upsample + 1×1 fuse + 3×3 conv at scale 2^l
@@ -110,9 +135,9 @@ impl DenoiserConfig {
         for l in 1..levels {
             m += InceptionBlock::macs(c[l - 1], c[l], self.prong) * scale(l);
         }
-        m += self.bottleneck_blocks as f64
-            * InceptionBlock::macs(c[levels - 1], c[levels - 1], self.prong)
-            * scale(levels - 1);
+        for (l, &cl) in c.iter().enumerate() {
+            m += self.blocks_at(l) as f64 * InceptionBlock::macs(cl, cl, self.prong) * scale(l);
+        }
         for l in 0..levels - 1 {
             m += ((c[l + 1] + c[l]) * c[l] + 9 * c[l] * c[l]) as f64 * scale(l);
         }
@@ -120,8 +145,13 @@ impl DenoiserConfig {
     }
 }
 
+/// Dilation of the `i`th inception block at a level (after its encoder): 2, 4, 2, 4, ...
+fn block_dilation(i: usize) -> usize {
+    2 + i % 2 * 2
+}
+
 /// A stride-1 convolution with "same" padding.
-fn conv(cin: usize, cout: usize, k: usize, dilation: usize, device: &Device) -> Conv2d {
+pub(crate) fn conv(cin: usize, cout: usize, k: usize, dilation: usize, device: &Device) -> Conv2d {
     conv_rect(cin, cout, [k, k], dilation, device)
 }
 
@@ -200,13 +230,15 @@ impl InceptionBlock {
     }
 }
 
-/// The denoiser: stem conv, an encoder of inception blocks with 2× max-pool between levels,
-/// inception bottleneck blocks, a decoder of nearest upsampling + skip concatenation + 1×1 fuse +
+/// The denoiser: stem conv, an encoder of inception blocks with 2× max-pool between levels
+/// (optionally more blocks after a level's encoder), inception bottleneck blocks, a decoder of nearest upsampling + skip concatenation + 1×1 fuse +
 /// 3×3 convs, and a 1×1 output conv predicting encoded colour.
 #[derive(Module, Debug)]
 pub struct DenoiserNet {
     pub(crate) stem: Conv2d,
     pub(crate) encoders: Vec<InceptionBlock>,
+    /// Blocks after the encoder at each level but the coarsest (see `level_blocks` in the config).
+    pub(crate) level_blocks: Vec<Vec<InceptionBlock>>,
     pub(crate) bottleneck: Vec<InceptionBlock>,
     pub(crate) decoders: Vec<Decoder>,
     pub(crate) output: Conv2d,
@@ -238,6 +270,9 @@ impl DenoiserNet {
                 y = self.downsample.forward(y); // [N, c(l−1), H/2^l, W/2^l]
             }
             y = enc.forward(y); // [N, c(l), H/2^l, W/2^l]
+            for b in self.level_blocks.get(l).into_iter().flatten() {
+                y = b.forward(y); // [N, c(l), H/2^l, W/2^l]
+            }
             skips.push(y.clone());
         }
         for b in &self.bottleneck {

@@ -9,7 +9,7 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::store::ModuleRecord;
 use burn::tensor::{Device, Tensor, TensorData};
-use rtd_denoise::{Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
+use rtd_denoise::{grow, Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
 use rtd_image::metrics;
 use serde::{Deserialize, Serialize};
 
@@ -42,6 +42,19 @@ pub struct TrainOptions {
     /// Weight of the gradient term of [`training_loss`] (0: plain L1).
     #[serde(default)]
     pub gradient_loss: f32,
+    /// Grow the `init` network by a coarser level before training (then `config` is the grown
+    /// config; see [`rtd_denoise::grow`]).
+    #[serde(default)]
+    pub grow: Option<GrowLevel>,
+}
+
+/// A coarser level to add to a trained network: its channels and bottleneck blocks.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+pub struct GrowLevel {
+    /// Channels of the new level.
+    pub channels: usize,
+    /// Inception blocks at the new level (the new bottleneck).
+    pub blocks: usize,
 }
 
 impl Default for TrainOptions {
@@ -57,6 +70,7 @@ impl Default for TrainOptions {
             validation_spp: 8,
             init: None,
             gradient_loss: 0.0,
+            grow: None,
         }
     }
 }
@@ -91,6 +105,12 @@ impl TrainOptions {
     /// Starts from a trained model's weights (fine-tuning).
     pub fn init(mut self, model: Option<PathBuf>) -> Self {
         self.init = model;
+        self
+    }
+    /// Grows the `init` network by a coarser level before training; `config` must then be
+    /// the grown config ([`rtd_denoise::grow::grown_config`]).
+    pub fn grow(mut self, level: Option<GrowLevel>) -> Self {
+        self.grow = level;
         self
     }
     /// Sets the weight of the gradient term of the loss (see [`training_loss`]).
@@ -230,7 +250,8 @@ fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser
     Ok(Denoiser::from_net(inference, config.clone(), device, "training"))
 }
 
-/// Random weights, or those of `options.init` after checking its config matches.
+/// Random weights, or those of `options.init` after checking its config matches (grown by
+/// `options.grow` if set).
 fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, TrainError> {
     let Some(path) = &options.init else {
         return Ok(options.config.init(device));
@@ -241,11 +262,20 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
         serde_json::from_str(&text).map_err(|e| TrainError::msg(&cfg_path, format!("not a model config: {e}")))?;
     // Demodulation changes what the colour planes mean, not the weights' shapes, so a model
     // without it may seed one with it.
-    if config.clone().with_demodulate(options.config.demodulate) != options.config {
+    let config = config.with_demodulate(options.config.demodulate);
+    let trained = match options.grow {
+        Some(g) => grow::grown_config(&config, g.channels, g.blocks),
+        None => config.clone(),
+    };
+    if trained != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    options.config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))
+    let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
+    Ok(match options.grow {
+        Some(g) => grow::add_level(net, &config, g.channels, g.blocks, device).0,
+        None => net,
+    })
 }
 
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing

@@ -77,6 +77,13 @@ pub struct TrainArgs {
     /// is the one its config describes.
     #[arg(long)]
     pub init: Option<PathBuf>,
+    /// With --init: first grow its network by a coarser level of this many channels, set up so
+    /// that the grown network computes the same function (its old bottleneck stays in place).
+    #[arg(long, requires = "init", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub grow: Option<u32>,
+    /// Inception blocks at the level that --grow adds.
+    #[arg(long, default_value_t = 2, requires = "grow", value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub grow_blocks: u32,
     /// Weight of an extra L1 term on the error's neighbour differences (sharper edges; 0: off).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
     pub gradient_loss: f32,

@@ -2,7 +2,7 @@
 
 use rtd_denoise::DenoiserConfig;
 use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions};
-use rtd_train::train::{TrainOptions, TrainState};
+use rtd_train::train::{GrowLevel, TrainOptions, TrainState};
 
 use crate::args::{DatagenArgs, TrainArgs, VariantArg};
 use crate::progress::TaskBar;
@@ -60,10 +60,16 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         (None, VariantArg::SingleScale) => DenoiserConfig::single_scale(),
     };
     let config = if args.demodulate { config.with_demodulate(Some(true)) } else { config };
+    let grow = args.grow.map(|c| GrowLevel { channels: c as usize, blocks: args.grow_blocks as usize });
+    let config = match grow {
+        Some(g) => rtd_denoise::grow::grown_config(&config, g.channels, g.blocks),
+        None => config,
+    };
     let mut options = TrainOptions::default()
         .config(config)
         .learning_rate(args.lr)
         .init(args.init.clone())
+        .grow(grow)
         .gradient_loss(args.gradient_loss)
         .seed(args.seed)
         .steps(args.steps)
