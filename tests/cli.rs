@@ -122,6 +122,9 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["render", &c, "-o", dir.path().to_str().unwrap()]), "");
     assert_fails(&rtd(&["render", &c, "-o", o, "--report", "/nonexistent-dir/r.json"]), "r.json");
     assert_fails(&rtd(&["frobnicate"]), "frobnicate");
+    // Missing arguments are named, not just announced.
+    assert_fails(&rtd(&["render", "-o", o]), "<SCENE>");
+    assert_fails(&rtd(&["train", "--data", o, "-o", o, "--grow", "64"]), "--init");
     // Refreshing a dataset's guides keeps its own generation settings.
     for (flag, value) in
         [("--scenes", "3"), ("--size", "64"), ("--seed", "2"), ("--views", "1"), ("--reference-spp", "8")]

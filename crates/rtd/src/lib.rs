@@ -33,7 +33,7 @@ where
             print!("{e}");
             return Ok(());
         }
-        Err(e) => return Err(anyhow::anyhow!(first_line(&e.to_string()))),
+        Err(e) => return Err(anyhow::anyhow!(first_paragraph(&e.to_string()))),
     };
     match cli.command {
         args::Command::Render(a) => render_command::render(&a).map(|_| ()),
@@ -57,8 +57,28 @@ pub fn one_line(e: &anyhow::Error) -> String {
     parts.join(": ")
 }
 
-/// The first meaningful line of clap's multi-line error text, without its "error: " prefix.
-fn first_line(s: &str) -> String {
-    let line = s.lines().find(|l| !l.trim().is_empty()).unwrap_or(s);
-    line.trim_start_matches("error: ").to_string()
+/// Clap's multi-line error text as one line: its first paragraph (the message, and for
+/// "the following required arguments were not provided:" the arguments listed under it),
+/// without the "error: " prefix, the usage line and the tips after it.
+fn first_paragraph(s: &str) -> String {
+    let lines = s.lines().skip_while(|l| l.trim().is_empty()).take_while(|l| !l.trim().is_empty());
+    let text = lines.map(str::trim).collect::<Vec<_>>().join(" ");
+    text.trim_start_matches("error: ").to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clap_errors_keep_the_arguments_they_list() {
+        let e = args::Cli::try_parse_from(["rtd", "train", "--data", "d", "-o", "o", "--grow", "8"]).unwrap_err();
+        assert_eq!(
+            first_paragraph(&e.to_string()),
+            "the following required arguments were not provided: --init <INIT>"
+        );
+        let e = args::Cli::try_parse_from(["rtd", "render", "--spp", "0"]).unwrap_err();
+        let line = first_paragraph(&e.to_string());
+        assert!(line.starts_with("invalid value '0' for '--spp") && !line.contains("Usage"), "{line}");
+    }
 }
