@@ -20,8 +20,14 @@ use rtd_scene::Scene;
 /// Occlusion rays per AO evaluation by default.
 pub const DEFAULT_AO_RAYS: u32 = 20;
 
-/// A sparse cell whose AO values spread more than this is evaluated per pixel.
-const REFINE_SPREAD: f32 = 0.15;
+/// A sparse cell whose AO values spread more than this is refined (on a finer lattice, then
+/// per pixel). Part of a spread is the 20-ray estimates' own quantisation (steps of 0.05), which
+/// a per-pixel evaluation does not remove: against 1024-ray AO at every pixel, 0.2 is as close
+/// as 0.15 on the bundled scenes at 256² and 512² (mean error within 0.0002 either way: lower
+/// for four of the eight scene-size pairs, higher for one) and refines far fewer pixels (on the glass scene at 256², 42% fewer fail the first
+/// lattice's test, and the pass takes 9% less time); 0.25 starts to miss real creases (pixels
+/// off by more than 0.1 rise by half on the Cornell box).
+const REFINE_SPREAD: f32 = 0.2;
 
 /// How far (as a fraction of their separation) a neighbour may leave a point's tangent plane and
 /// still count as the same surface: |d|/2r for a sphere of radius r seen across d, so 0.15
