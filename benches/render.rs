@@ -91,8 +91,11 @@ fn guide(c: &mut Criterion) {
 criterion_group!(benches, bvh_build, traversal, render, guide);
 
 /// The guide pass's cost as a share of an 8-spp render of the same view (the bar is 5%),
-/// for every bundled scene at each resolution, measured back to back in one run: the render
-/// once, the guide as the median of three.
+/// for every bundled scene at each resolution, measured back to back in one run. Each figure is
+/// the fastest of several runs, interleaved (render, then three guides, per round): on a shared
+/// machine a short pass is hit harder by a stray interruption than a long one, and the fastest
+/// run is the cost without them. Images up to 512² get five rounds, larger ones one (their
+/// renders take seconds and vary little).
 fn guide_share(resolutions: &[(u32, u32)], scenes: &[&str]) {
     println!("| scene | resolution | render 8 spp (s) | guide (s) | guide / render |");
     println!("|---|---|---|---|---|");
@@ -102,17 +105,17 @@ fn guide_share(resolutions: &[(u32, u32)], scenes: &[&str]) {
         let prepared = RenderScene::new(s);
         for &(w, h) in resolutions {
             let tracer = PathTracer::new(&prepared, cam.clone(), RenderSettings::new(w, h)).unwrap();
-            let mut film = tracer.film();
-            let stats = tracer.render(&mut film, 8).unwrap();
-            // The guide is short, so single runs are noisy on a shared machine: take the median of 3.
-            let mut guide: Vec<f64> = (0..3)
-                .map(|_| {
-                    GuidePass::render(&prepared.scene, &prepared.bvh, &cam, &GuideSettings::new(w, h)).unwrap().seconds
-                })
-                .collect();
-            guide.sort_by(f64::total_cmp);
-            let g = guide[1];
-            println!("| {name} | {w}x{h} | {:.3} | {:.3} | {:.1}% |", stats.seconds, g, 100.0 * g / stats.seconds);
+            let rounds = if w * h <= 512 * 512 { 5 } else { 1 };
+            let (mut render, mut guide) = (f64::INFINITY, f64::INFINITY);
+            for _ in 0..rounds {
+                let mut film = tracer.film();
+                render = render.min(tracer.render(&mut film, 8).unwrap().seconds);
+                for _ in 0..3 {
+                    let g = GuidePass::render(&prepared.scene, &prepared.bvh, &cam, &GuideSettings::new(w, h)).unwrap();
+                    guide = guide.min(g.seconds);
+                }
+            }
+            println!("| {name} | {w}x{h} | {render:.3} | {guide:.3} | {:.1}% |", 100.0 * guide / render);
         }
     }
 }
