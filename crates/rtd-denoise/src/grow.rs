@@ -18,9 +18,8 @@ use crate::model::{conv, Decoder, DenoiserConfig, DenoiserNet};
 /// The config of `config` grown by a coarsest level of `channels` channels with `blocks`
 /// bottleneck blocks; the old bottleneck becomes the old coarsest level's blocks.
 pub fn grown_config(config: &DenoiserConfig, channels: usize, blocks: usize) -> DenoiserConfig {
-    let levels = config.channels.len();
-    let mut level_blocks: Vec<usize> = (0..levels).map(|l| config.blocks_at(l)).collect();
-    level_blocks[levels - 1] = config.bottleneck_blocks;
+    // Every old level's blocks, the old bottleneck (`blocks_at` of the coarsest) included.
+    let level_blocks = (0..config.channels.len()).map(|l| config.blocks_at(l)).collect();
     let mut grown = config.clone();
     grown.channels.push(channels);
     grown.level_blocks = Some(level_blocks);
@@ -92,16 +91,31 @@ mod tests {
         Tensor::from_data(TensorData::new(v, [n, INPUT_CHANNELS, h, w]), device)
     }
 
+    /// A small two-level network seeded by `seed`, its config, its device, an input and what
+    /// the network computes on it.
+    fn small_net(seed: u64, n: usize) -> (Device, DenoiserConfig, DenoiserNet, Tensor<4>, Vec<f32>) {
+        let device = Device::flex();
+        device.seed(seed);
+        let config = DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(1);
+        let net = config.init(&device);
+        let x = input(n, 16, 24, &device);
+        let out = run(&net, &x);
+        (device, config, net, x, out)
+    }
+
+    fn run(net: &DenoiserNet, x: &Tensor<4>) -> Vec<f32> {
+        net.forward(x.clone()).into_data().try_to_vec().unwrap()
+    }
+
+    fn max_diff(a: &[f32], b: &[f32]) -> f32 {
+        a.iter().zip(b).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max)
+    }
+
     /// Growing keeps the function (twice: the second growth moves a grown bottleneck too) while
     /// adding levels, blocks, receptive field and cost.
     #[test]
     fn a_grown_network_computes_the_same_function() {
-        let device = Device::flex();
-        device.seed(5);
-        let config = DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(1);
-        let net = config.init(&device);
-        let x = input(2, 16, 24, &device);
-        let before: Vec<f32> = net.forward(x.clone()).into_data().try_to_vec().unwrap();
+        let (device, config, net, x, before) = small_net(5, 2);
         let (net, grown) = add_level(net, &config, 16, 2, &device);
         let (net, grown2) = add_level(net, &grown, 20, 1, &device);
         assert_eq!(grown2.channels, vec![8, 12, 16, 20]);
@@ -110,32 +124,25 @@ mod tests {
         assert!(grown2.receptive_radius() > grown.receptive_radius());
         assert!(grown.receptive_radius() > config.receptive_radius());
         assert!(grown2.macs_per_pixel() > config.macs_per_pixel());
-        let after: Vec<f32> = net.forward(x).into_data().try_to_vec().unwrap();
-        let worst = before.iter().zip(&after).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let after = run(&net, &x);
+        let worst = max_diff(&before, &after);
         assert!(worst < 1e-5, "grown output differs by {worst}");
         // The grown net is the one its config describes: its record loads into a fresh build.
         use burn::module::Module;
         let reloaded = grown2.init(&device).load_record(net.clone().into_record());
-        let again: Vec<f32> = reloaded.forward(input(2, 16, 24, &device)).into_data().try_to_vec().unwrap();
-        assert_eq!(after, again);
+        assert_eq!(after, run(&reloaded, &x));
     }
 
     /// The new level reaches the output once the fuse weighs it: the equality above comes from
     /// the identity decoder, not from a level that is cut off.
     #[test]
     fn the_identity_decoder_is_what_keeps_the_function() {
-        let device = Device::flex();
-        device.seed(6);
-        let config = DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(1);
-        let net = config.init(&device);
-        let x = input(1, 16, 16, &device);
-        let before: Vec<f32> = net.forward(x.clone()).into_data().try_to_vec().unwrap();
+        let (device, config, net, x, before) = small_net(6, 1);
         let (mut net, _) = add_level(net, &config, 16, 1, &device);
         // Give the fuse a weight on the upsampled half: the output must now change.
         let d = net.decoders.last_mut().unwrap();
         d.fuse.weight = d.fuse.weight.clone().map(|w| w + 0.05);
-        let after: Vec<f32> = net.forward(x).into_data().try_to_vec().unwrap();
-        let worst = before.iter().zip(&after).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let worst = max_diff(&before, &run(&net, &x));
         assert!(worst > 1e-3, "the new level does not reach the output ({worst})");
     }
 }

@@ -231,8 +231,9 @@ impl InceptionBlock {
 }
 
 /// The denoiser: stem conv, an encoder of inception blocks with 2× max-pool between levels
-/// (optionally more blocks after a level's encoder), inception bottleneck blocks, a decoder of nearest upsampling + skip concatenation + 1×1 fuse +
-/// 3×3 convs, and a 1×1 output conv predicting encoded colour.
+/// (optionally more blocks after a level's encoder), inception bottleneck blocks, a decoder of
+/// nearest upsampling + skip concatenation + 1×1 fuse + 3×3 convs, and a 1×1 output conv
+/// predicting encoded colour.
 #[derive(Module, Debug)]
 pub struct DenoiserNet {
     pub(crate) stem: Conv2d,

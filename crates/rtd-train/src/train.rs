@@ -57,6 +57,13 @@ pub struct GrowLevel {
     pub blocks: usize,
 }
 
+impl GrowLevel {
+    /// `config` grown by this level ([`grow::grown_config`]).
+    pub fn grown(&self, config: &DenoiserConfig) -> DenoiserConfig {
+        grow::grown_config(config, self.channels, self.blocks)
+    }
+}
+
 impl Default for TrainOptions {
     fn default() -> Self {
         TrainOptions {
@@ -263,11 +270,7 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     // Demodulation changes what the colour planes mean, not the weights' shapes, so a model
     // without it may seed one with it.
     let config = config.with_demodulate(options.config.demodulate);
-    let trained = match options.grow {
-        Some(g) => grow::grown_config(&config, g.channels, g.blocks),
-        None => config.clone(),
-    };
-    if trained != options.config {
+    if options.grow.map_or(config.clone(), |g| g.grown(&config)) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;

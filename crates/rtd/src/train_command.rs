@@ -61,10 +61,7 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
     };
     let config = if args.demodulate { config.with_demodulate(Some(true)) } else { config };
     let grow = args.grow.map(|c| GrowLevel { channels: c as usize, blocks: args.grow_blocks as usize });
-    let config = match grow {
-        Some(g) => rtd_denoise::grow::grown_config(&config, g.channels, g.blocks),
-        None => config,
-    };
+    let config = grow.map_or(config.clone(), |g| g.grown(&config));
     let mut options = TrainOptions::default()
         .config(config)
         .learning_rate(args.lr)
