@@ -135,6 +135,23 @@ fn bad_arguments_fail_cleanly() {
 }
 
 #[test]
+fn a_closed_standard_output_is_not_an_error() {
+    // `rtd … | head` can close the pipe before rtd prints its summary: rtd still succeeds and
+    // writes its files, without a panic.
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("g.png");
+    let (c, p) = (cornell_path(), png.to_str().unwrap().to_string());
+    for args in [vec!["train", "--help"], vec!["guide", &c, "-o", &p, "--width", "16", "--height", "16"]] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = Command::new(env!("CARGO_BIN_EXE_rtd")).args(&args).stdout(writer).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success() && err.trim().is_empty(), "{args:?}: {:?} {err}", out.status);
+    }
+    assert!(rtd::image::read_ldr(&png).is_ok());
+}
+
+#[test]
 fn bad_scenes_fail_cleanly() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");

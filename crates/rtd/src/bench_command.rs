@@ -26,7 +26,7 @@ fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
     if let Some(p) = &args.report {
         write_json(p, &report)?;
     }
-    println!("{}", report.markdown());
+    crate::print_line(&report.markdown())?;
     Ok(())
 }
 
@@ -56,7 +56,7 @@ fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
     let bar = TaskBar::new(args.quiet);
     let results = rtd_bench::suite::run_suite(&scenes, &model, &options, &args.output, &bar)?;
     bar.finish();
-    println!("{}", rtd_bench::suite::summary_markdown(&results));
+    crate::print_line(&rtd_bench::suite::summary_markdown(&results))?;
     Ok(())
 }
 
@@ -80,7 +80,7 @@ fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
     let (report, images) = rtd_bench::run_etrt(&args.scene, &model, &options, args.reference.as_deref(), &cache, &bar)?;
     bar.finish();
     rtd_bench::etrt::write_etrt(&args.output, &report, &images)?;
-    println!("{}", report.markdown());
+    crate::print_line(&report.markdown())?;
     Ok(())
 }
 
@@ -97,6 +97,6 @@ fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
     rtd_image::write_atomic(&path, |w| {
         std::io::Write::write_all(w, md.as_bytes()).map_err(|e| rtd_image::ImageError::io(&path, e))
     })?;
-    println!("{md}");
+    crate::print_line(&md)?;
     Ok(())
 }

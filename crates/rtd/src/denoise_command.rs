@@ -167,7 +167,7 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseReport> {
         inputs,
         nonfinite_input_values: count_nonfinite(&color),
     };
-    println!(
+    crate::print_line(&format!(
         "denoised {}x{} in {:.3} s with {}{}",
         out.width,
         out.height,
@@ -178,7 +178,7 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseReport> {
         } else {
             String::new()
         }
-    );
+    ))?;
     if let Some(path) = &args.report {
         write_json(path, &report)?;
     }

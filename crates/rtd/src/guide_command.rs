@@ -60,7 +60,10 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
         guide_s: pass.seconds,
         triangles: prepared.scene.triangles.len(),
     };
-    println!("guide pass {}x{} in {:.3} s ({} triangles)", view.width, view.height, pass.seconds, report.triangles);
+    crate::print_line(&format!(
+        "guide pass {}x{} in {:.3} s ({} triangles)",
+        view.width, view.height, pass.seconds, report.triangles
+    ))?;
     if let Some(path) = &args.report {
         write_json(path, &report)?;
     }

@@ -30,8 +30,7 @@ where
     let cli = match args::Cli::try_parse_from(args) {
         Ok(c) => c,
         Err(e) if matches!(e.kind(), clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion) => {
-            print!("{e}");
-            return Ok(());
+            return print_text(&e.to_string());
         }
         Err(e) => return Err(anyhow::anyhow!(first_paragraph(&e.to_string()))),
     };
@@ -43,6 +42,22 @@ where
         args::Command::Bench(a) => bench_command::bench(&a),
         args::Command::Train(a) => train_command::train(&a).map(|_| ()),
     }
+}
+
+/// Writes `text` to standard output. A reader that has gone away (`rtd train --help | head`)
+/// is not an error, since the command's files are written by then; any other write error is.
+pub fn print_text(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.map_err(|e| anyhow::anyhow!("cannot write to standard output: {e}")),
+    }
+}
+
+/// [`print_text`] with a newline after it.
+pub fn print_line(text: &str) -> anyhow::Result<()> {
+    print_text(&format!("{text}\n"))
 }
 
 /// An error and its causes on one line.

@@ -233,7 +233,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     report.guide_s = guide.as_ref().map(|g| g.seconds);
     report.denoise_s = denoise_s;
     report.denoise_model = model.as_ref().map(|m| m.name().to_string());
-    println!(
+    crate::print_line(&format!(
         "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}{}",
         report.spp,
         view.width,
@@ -246,7 +246,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         guide.as_ref().map(|g| format!(", guide pass {:.3} s", g.seconds)).unwrap_or_default()
             + &denoise_s.map(|d| format!(", denoised in {d:.3} s")).unwrap_or_default(),
         if was_interrupted { " (interrupted: image holds the finished passes)" } else { "" }
-    );
+    ))?;
     if let Some(path) = &args.report {
         write_json(path, &report)?;
     }
