@@ -125,6 +125,7 @@ fn bad_arguments_fail_cleanly() {
     // Missing arguments are named, not just announced.
     assert_fails(&rtd(&["render", "-o", o]), "<SCENE>");
     assert_fails(&rtd(&["train", "--data", o, "-o", o, "--grow", "64"]), "--init");
+    assert_fails(&rtd(&["train", "--data", o, "-o", o, "--exposure-key", "0"]), "--exposure-key");
     // Refreshing a dataset's guides keeps its own generation settings.
     for (flag, value) in
         [("--scenes", "3"), ("--size", "64"), ("--seed", "2"), ("--views", "1"), ("--reference-spp", "8")]

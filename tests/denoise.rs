@@ -119,15 +119,15 @@ fn black_input_gives_black_output_and_constants_stay_constant() {
 /// its decoded output is multiplied by the same factor. Without albedo nothing is divided.
 #[test]
 fn the_shipped_model_demodulates_by_albedo_and_multiplies_it_back() {
-    use rtd::denoise::encode::{auto_exposure, decode_color, encode_planes, DEMOD_EPS};
+    use rtd::denoise::encode::{decode_color, encode_planes, DEMOD_EPS};
     let m = model();
     assert!(m.config().demodulates());
     let (color, g) = cornell_inputs(40, 36);
     let (w, h) = (40usize, 36usize);
     let n = w * h;
     for input in [full_input(&color, &g), DenoiseInput::new(&color, &g.guide)] {
-        let e = auto_exposure(&color);
-        let raw = m.run_planes(&encode_planes(&input, e, true).unwrap(), w, h);
+        let e = m.config().encoding().exposure(&color);
+        let raw = m.run_planes(&encode_planes(&input, e, m.config().encoding()).unwrap(), w, h);
         let out = m.denoise(&input).unwrap();
         for i in 0..n {
             for k in 0..3 {
@@ -137,6 +137,31 @@ fn the_shipped_model_demodulates_by_albedo_and_multiplies_it_back() {
             }
         }
     }
+}
+
+#[test]
+fn a_model_without_depth_ignores_the_depth_layer() {
+    // The shipped weights under a config that leaves depth out: the output no longer moves
+    // with the depth layer (it does under the shipped config), and it still moves with AO.
+    let root = common::repo_path("models");
+    let json = std::fs::read_to_string(root.join("rtd-denoiser.json")).unwrap();
+    let weights = std::fs::read(root.join("rtd-denoiser.bpk")).unwrap();
+    let mut config: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let reads = |c: &serde_json::Value| Denoiser::from_bytes(&c.to_string(), weights.clone(), "m").unwrap();
+    config["depth"] = serde_json::Value::Bool(true);
+    let with = reads(&config);
+    config["depth"] = serde_json::Value::Bool(false);
+    let without = reads(&config);
+    assert!(with.config().reads_depth() && !without.config().reads_depth());
+    let (color, g) = cornell_inputs(40, 32);
+    let far: Vec<f32> = g.depth.iter().map(|d| d * 3.0 + 1.0).collect();
+    let dark: Vec<f32> = g.ao.iter().map(|a| a * 0.5).collect();
+    let an = DenoiseInput::new(&color, &g.guide).albedo_normal(&g.albedo, &g.normal);
+    let input = |ao, depth| an.ao_depth(ao, depth);
+    let (a, b) = (input(&g.ao, &g.depth), input(&g.ao, &far));
+    assert_eq!(without.denoise(&a).unwrap().pixels, without.denoise(&b).unwrap().pixels);
+    assert_ne!(with.denoise(&a).unwrap().pixels, with.denoise(&b).unwrap().pixels);
+    assert_ne!(without.denoise(&a).unwrap().pixels, without.denoise(&input(&dark, &g.depth)).unwrap().pixels);
 }
 
 #[test]

@@ -139,11 +139,12 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     assert!(diff(&run("a"), &run("c")) > 1e-3, "a fresh network should differ");
     // A model without demodulation may seed a demodulating run of the same shape, which then
     // says so in its config.
-    let demod = tuned.clone().config(tiny_config().with_demodulate(Some(true)));
-    train(&data, &dir.path().join("e"), &demod, false, &Quiet).unwrap();
+    // So may it seed one that leaves depth out or takes another exposure key.
+    let encoding = tiny_config().with_demodulate(Some(true)).with_depth(Some(false)).with_exposure_key(Some(1.44));
+    train(&data, &dir.path().join("e"), &tuned.clone().config(encoding), false, &Quiet).unwrap();
     let cfg = std::fs::read_to_string(dir.path().join("e/model.json")).unwrap();
     let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
-    assert!(cfg.demodulates());
+    assert!(cfg.demodulates() && !cfg.reads_depth() && cfg.exposure_key() == 1.44);
     // Grown by a coarser level (`rtd train --grow`): a three-level network that starts out
     // computing what a does.
     let grown_config = rtd::denoise::grow::grown_config(&tiny_config(), 8, 1);

@@ -9,8 +9,38 @@ use crate::{DenoiseError, INPUT_CHANNELS};
 /// Largest colour value accepted before exposure; +Inf and larger values are clamped to it.
 pub const MAX_INPUT: f32 = 1e7;
 
+/// The value [`auto_exposure`] maps the log-average luminance to (middle grey).
+pub const DEFAULT_KEY: f32 = 0.18;
+
 /// Added to the albedo before demodulating, so black albedo divides by this, not by 0.
 pub const DEMOD_EPS: f32 = 0.01;
+
+/// How a model turns its inputs into planes (from [`crate::DenoiserConfig::encoding`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Encoding {
+    /// Colour is divided by albedo + [`DEMOD_EPS`] where an albedo layer is given.
+    pub demodulate: bool,
+    /// The depth plane is filled (otherwise it stays 0, and only AO is read of the AO + depth
+    /// pair).
+    pub depth: bool,
+    /// The value auto-exposure maps the log-average luminance to before the log transfer
+    /// ([`DEFAULT_KEY`] unless the model says otherwise).
+    pub key: f32,
+}
+
+impl Default for Encoding {
+    /// No demodulation; depth read; the default key.
+    fn default() -> Self {
+        Encoding { demodulate: false, depth: true, key: DEFAULT_KEY }
+    }
+}
+
+impl Encoding {
+    /// The exposure of `color` under this encoding: [`auto_exposure`] scaled to the key.
+    pub fn exposure(&self, color: &HdrImage) -> f32 {
+        (auto_exposure(color) * (self.key / DEFAULT_KEY)).clamp(1e-8, 1e8)
+    }
+}
 
 /// What the denoiser is given. Colour and a guide are required; albedo + normal and AO + depth
 /// are optional pairs (rtd's own renders have all of them).
@@ -104,7 +134,7 @@ pub fn auto_exposure(color: &HdrImage) -> f32 {
     }
     // Geometric mean of luminance over lit pixels.
     let log_avg = (sum / n as f64).exp();
-    ((0.18 / log_avg) as f32).clamp(1e-8, 1e8)
+    ((DEFAULT_KEY as f64 / log_avg) as f32).clamp(1e-8, 1e8)
 }
 
 /// The colour transfer: y = ln(1 + x · exposure).
@@ -149,8 +179,9 @@ pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&H
 }
 
 /// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order. With
-/// `demodulate` and an albedo layer, the colour planes hold colour ÷ (albedo + [`DEMOD_EPS`]).
-pub fn encode_planes(input: &DenoiseInput, exposure: f32, demodulate: bool) -> Result<Vec<f32>, DenoiseError> {
+/// `encoding.demodulate` and an albedo layer, the colour planes hold colour ÷ (albedo +
+/// [`DEMOD_EPS`]); without `encoding.depth` the depth plane stays 0.
+pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) -> Result<Vec<f32>, DenoiseError> {
     let (w, h) = input.size()?;
     let n = (w * h) as usize;
     let depth_scale = input.ao_depth.map(|(_, d)| {
@@ -161,7 +192,7 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, demodulate: bool) -> R
             hits.len() as f32 / hits.iter().sum::<f32>()
         }
     });
-    let demod = demod_albedo(input, demodulate);
+    let demod = demod_albedo(input, encoding.demodulate);
     let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
     // One plane per task; absent inputs leave their planes (and flags) at 0.
     planes.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
@@ -175,7 +206,9 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, demodulate: bool) -> R
             }
             (12, _, Some(((ao, _), _))) => plane.iter_mut().zip(ao).for_each(|(v, a)| *v = clean(*a, 0.0, 1.0)),
             // Depth relative to the mean hit distance, so the scene's scale does not matter.
-            (13, _, Some(((_, d), s))) => plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0)),
+            (13, _, Some(((_, d), s))) if encoding.depth => {
+                plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0))
+            }
             (14, Some(_), _) | (15, _, Some(_)) => plane.fill(1.0),
             _ => {}
         }
@@ -207,6 +240,9 @@ mod tests {
         let scaled = HdrImage::from_pixels(2, 1, vec![Vec3::splat(5e5), Vec3::splat(2e6)]);
         assert!((auto_exposure(&scaled) * 1e6 - 0.18).abs() < 1e-6);
         assert_eq!(auto_exposure(&HdrImage::new(3, 3)), 1.0);
+        // A model's key scales it: the log-average goes to the key instead.
+        let key = Encoding { key: 1.44, ..Encoding::default() };
+        assert!((key.exposure(&img) - 1.44).abs() < 1e-5);
     }
 
     #[test]
@@ -215,8 +251,8 @@ mod tests {
         let albedo = HdrImage::from_pixels(2, 1, vec![Vec3::new(0.24, 0.49, 0.0), Vec3::splat(2.0)]);
         let normal = HdrImage::from_pixels(2, 1, vec![Vec3::Z; 2]);
         let with = DenoiseInput::new(&color, &color).albedo_normal(&albedo, &normal);
-        let demod = encode_planes(&with, 0.7, true).unwrap();
-        let plain = encode_planes(&with, 0.7, false).unwrap();
+        let demod = encode_planes(&with, 0.7, Encoding { demodulate: true, ..Encoding::default() }).unwrap();
+        let plain = encode_planes(&with, 0.7, Encoding::default()).unwrap();
         // Albedo + ε: 0.25, 0.5, 0.01; albedo above 1 is clamped to 1 first.
         let expected = [0.5 / 0.25, 3.0 / 1.01, 1.0 / 0.5, 3.0 / 1.01, 2.0 / 0.01, 3.0 / 1.01];
         for (v, x) in demod[..6].iter().zip(expected) {
@@ -226,7 +262,28 @@ mod tests {
         assert_ne!(demod[..6], plain[..6]);
         // Without an albedo layer there is nothing to divide by.
         let without = DenoiseInput::new(&color, &color);
-        assert_eq!(encode_planes(&without, 0.7, true).unwrap(), encode_planes(&without, 0.7, false).unwrap());
+        let demod = Encoding { demodulate: true, ..Encoding::default() };
+        assert_eq!(
+            encode_planes(&without, 0.7, demod).unwrap(),
+            encode_planes(&without, 0.7, Encoding::default()).unwrap()
+        );
+    }
+
+    #[test]
+    fn without_depth_the_depth_plane_is_zero_and_ao_is_still_read() {
+        let color = HdrImage::from_pixels(2, 1, vec![Vec3::splat(0.5), Vec3::splat(3.0)]);
+        let (ao, depth) = ([0.25, 1.0], [2.0, 6.0]);
+        let input = DenoiseInput::new(&color, &color).ao_depth(&ao, &depth);
+        let plane = |planes: &[f32], c: usize| planes[2 * c..2 * c + 2].to_vec();
+        let with = encode_planes(&input, 1.0, Encoding::default()).unwrap();
+        let without = encode_planes(&input, 1.0, Encoding { depth: false, ..Encoding::default() }).unwrap();
+        // Depth relative to the mean hit distance (4).
+        assert_eq!(plane(&with, 13), [0.5, 1.5]);
+        assert_eq!(plane(&without, 13), [0.0, 0.0]);
+        for c in (0..INPUT_CHANNELS).filter(|c| *c != 13) {
+            assert_eq!(plane(&with, c), plane(&without, c), "plane {c}");
+        }
+        assert_eq!((plane(&without, 12), plane(&without, 15)), (vec![0.25, 1.0], vec![1.0, 1.0]));
     }
 
     #[test]

@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rtd_image::HdrImage;
 
-use crate::encode::{auto_exposure, decode_color, demod_albedo, demod_factor, encode_planes, DenoiseInput};
+use crate::encode::{decode_color, demod_albedo, demod_factor, encode_planes, DenoiseInput};
 use crate::fast::{FastNet, Map, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::{DenoiseError, INPUT_CHANNELS};
@@ -137,8 +137,8 @@ impl Denoiser {
         if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
             return Err(DenoiseError::Input(format!("image size {w}x{h} is outside 1..={MAX_SIDE} per side")));
         }
-        let exposure = auto_exposure(input.color);
-        let planes = encode_planes(input, exposure, self.config.demodulates())?;
+        let exposure = self.config.encoding().exposure(input.color);
+        let planes = encode_planes(input, exposure, self.config.encoding())?;
         let out = self.run_planes(&planes, w as usize, h as usize);
         let n = (w * h) as usize;
         // Decode, then multiply the albedo back in if the colour was demodulated.

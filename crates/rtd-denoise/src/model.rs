@@ -9,6 +9,8 @@ use burn::nn::PaddingConfig2d;
 use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
+use crate::encode::Encoding;
+
 /// Input channels the network reads, in order (see `encode.rs`): encoded noisy colour (3), guide
 /// RGB = albedo × AO (3), albedo (3), normal (3), AO (1), depth (1), and two 0/1 flags saying
 /// whether albedo+normal and AO+depth are present.
@@ -38,6 +40,15 @@ pub struct DenoiserConfig {
     /// lighting and the texture is multiplied back exactly. Absent (older model files) means
     /// no; read it through [`DenoiserConfig::demodulates`].
     pub demodulate: Option<bool>,
+    /// Whether the depth layer is read. Absent (older model files) means yes; a model made with
+    /// `rtd train --no-depth` leaves the depth plane at 0 and reads AO alone (models/README.md
+    /// has what that measured). Read it through [`DenoiserConfig::reads_depth`].
+    pub depth: Option<bool>,
+    /// The value auto-exposure maps the log-average luminance to before the log transfer
+    /// ln(1 + x · exposure): a larger key gives dark regions more of the transfer's range (and
+    /// of the training loss). Absent (older model files) means
+    /// [`crate::encode::DEFAULT_KEY`]; read it through [`DenoiserConfig::exposure_key`].
+    pub exposure_key: Option<f32>,
 }
 
 impl DenoiserConfig {
@@ -54,6 +65,21 @@ impl DenoiserConfig {
     /// Whether colour is demodulated by albedo (see the `demodulate` field).
     pub fn demodulates(&self) -> bool {
         self.demodulate.unwrap_or(false)
+    }
+
+    /// Whether the depth layer is read (see the `depth` field).
+    pub fn reads_depth(&self) -> bool {
+        self.depth.unwrap_or(true)
+    }
+
+    /// The exposure key (see the `exposure_key` field).
+    pub fn exposure_key(&self) -> f32 {
+        self.exposure_key.unwrap_or(crate::encode::DEFAULT_KEY)
+    }
+
+    /// How inputs are encoded for this network.
+    pub fn encoding(&self) -> Encoding {
+        Encoding { demodulate: self.demodulates(), depth: self.reads_depth(), key: self.exposure_key() }
     }
 
     /// Inception blocks after the encoder at level `l` (the bottleneck at the coarsest level).

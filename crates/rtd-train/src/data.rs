@@ -7,7 +7,7 @@ use std::path::Path;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rtd_denoise::encode::{auto_exposure, demod_albedo, encode_color_plane, encode_planes};
+use rtd_denoise::encode::{demod_albedo, encode_color_plane, encode_planes, Encoding};
 use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
 use rtd_image::HdrImage;
 
@@ -111,15 +111,16 @@ pub struct CropSampler {
 pub const DROP_PROBABILITY: f32 = 0.3;
 
 impl CropSampler {
-    /// Encodes every view at every stored sample count, demodulating colour and target by the
-    /// albedo if `demodulate` is set.
-    pub fn new(views: &[View], crop: usize, demodulate: bool) -> Result<Self, TrainError> {
+    /// Encodes every view at every stored sample count as `encoding` says (demodulating colour
+    /// and target by the albedo if it demodulates).
+    pub fn new(views: &[View], crop: usize, encoding: Encoding) -> Result<Self, TrainError> {
+        let demodulate = encoding.demodulate;
         let mut encoded = vec![];
         for v in views {
             for (spp, _) in &v.noisy {
                 let input = v.input(*spp);
-                let e = auto_exposure(input.color);
-                let planes = encode_planes(&input, e, demodulate)?;
+                let e = encoding.exposure(input.color);
+                let planes = encode_planes(&input, e, encoding)?;
                 let target = encode_rgb(&v.reference, demod_albedo(&input, demodulate), e);
                 let plain = demodulate.then(|| (encode_rgb(input.color, None, e), encode_rgb(&v.reference, None, e)));
                 encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, plain });
@@ -231,7 +232,7 @@ mod tests {
     #[test]
     fn batches_are_reproducible_and_augmentations_keep_input_and_target_aligned() {
         for demodulate in [false, true] {
-            let sampler = CropSampler::new(&[toy_view()], 8, demodulate).unwrap();
+            let sampler = CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }).unwrap();
             let (x1, y1) = sampler.batch(3, 17, 4);
             let (x2, y2) = sampler.batch(3, 17, 4);
             assert_eq!((x1.clone(), y1.clone()), (x2, y2));
@@ -247,8 +248,9 @@ mod tests {
             }
         }
         // Demodulation divides by albedo + eps: the toy's blue albedo 0.6 scales colour by 1/0.61.
-        let (plain, demod) =
-            (CropSampler::new(&[toy_view()], 8, false).unwrap(), CropSampler::new(&[toy_view()], 8, true).unwrap());
+        let sampler =
+            |demodulate| CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }).unwrap();
+        let (plain, demod) = (sampler(false), sampler(true));
         assert_ne!(plain.encoded[0].planes[..192], demod.encoded[0].planes[..192]);
         assert_eq!(plain.encoded[0].planes[192..], demod.encoded[0].planes[192..]);
     }

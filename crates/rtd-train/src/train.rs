@@ -267,9 +267,12 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     let text = std::fs::read_to_string(&cfg_path).map_err(|e| TrainError::io(&cfg_path, e))?;
     let config: DenoiserConfig =
         serde_json::from_str(&text).map_err(|e| TrainError::msg(&cfg_path, format!("not a model config: {e}")))?;
-    // Demodulation changes what the colour planes mean, not the weights' shapes, so a model
-    // without it may seed one with it.
-    let config = config.with_demodulate(options.config.demodulate);
+    // Demodulation, leaving depth out and the exposure key change what input planes mean, not the weights'
+    // shapes, so a model without them may seed one with them.
+    let config = config
+        .with_demodulate(options.config.demodulate)
+        .with_depth(options.config.depth)
+        .with_exposure_key(options.config.exposure_key);
     if options.grow.map_or(config.clone(), |g| g.grown(&config)) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
@@ -329,7 +332,7 @@ pub fn train(
     if train_views.is_empty() {
         return Err(TrainError::msg(&data.join("manifest.json"), "has no training views"));
     }
-    let sampler = CropSampler::new(&train_views, options.crop, options.config.demodulates())?;
+    let sampler = CropSampler::new(&train_views, options.crop, options.config.encoding())?;
     progress.start(options.steps, "train");
     progress.inc(state.step);
     let mut epoch_start = Instant::now();

@@ -73,6 +73,15 @@ pub struct TrainArgs {
     /// model's config; with --init, the initial model may lack it).
     #[arg(long)]
     pub demodulate: bool,
+    /// Leave the depth layer out of the network's input, reading AO alone of the AO + depth pair
+    /// (saved in the model's config; with --init, the initial model may read depth)
+    #[arg(long)]
+    pub no_depth: bool,
+    /// Exposure the log-average luminance is mapped to before the log transfer (saved in the
+    /// model's config; default 0.18, or the --init model's): larger keys give dark regions more
+    /// of the transfer's range and of the loss
+    #[arg(long, value_parser = parse_key)]
+    pub exposure_key: Option<f32>,
     /// Fine-tune: start from this model's weights (.bpk with its .json beside it); the network
     /// is the one its config describes.
     #[arg(long)]
@@ -454,5 +463,14 @@ fn positive_rate(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("{v} is not in (0, 1]"))
+    }
+}
+
+fn parse_key(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
+    if (1e-3..=1e3).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in [0.001, 1000]"))
     }
 }

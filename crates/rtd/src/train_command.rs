@@ -60,6 +60,11 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         (None, VariantArg::SingleScale) => DenoiserConfig::single_scale(),
     };
     let config = if args.demodulate { config.with_demodulate(Some(true)) } else { config };
+    let config = if args.no_depth { config.with_depth(Some(false)) } else { config };
+    let config = match args.exposure_key {
+        Some(k) => config.with_exposure_key(Some(k)),
+        None => config,
+    };
     let grow = args.grow.map(|c| GrowLevel { channels: c as usize, blocks: args.grow_blocks as usize });
     let config = grow.map_or(config.clone(), |g| g.grown(&config));
     let mut options = TrainOptions::default()
