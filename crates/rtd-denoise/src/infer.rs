@@ -137,12 +137,13 @@ impl Denoiser {
         if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
             return Err(DenoiseError::Input(format!("image size {w}x{h} is outside 1..={MAX_SIDE} per side")));
         }
-        let exposure = self.config.encoding().exposure(input.color);
-        let planes = encode_planes(input, exposure, self.config.encoding())?;
+        let encoding = self.config.encoding();
+        let exposure = encoding.exposure(input.color);
+        let planes = encode_planes(input, exposure, encoding)?;
         let out = self.run_planes(&planes, w as usize, h as usize);
         let n = (w * h) as usize;
         // Decode, then multiply the albedo back in if the colour was demodulated.
-        let demod = demod_albedo(input, self.config.demodulates());
+        let demod = demod_albedo(input, encoding.demodulate);
         let channel =
             |k: usize, i: usize| (decode_color(out[k * n + i], exposure) * demod_factor(demod, i, k)).min(f32::MAX);
         let pixels = (0..n).map(|i| Vec3::new(channel(0, i), channel(1, i), channel(2, i))).collect();

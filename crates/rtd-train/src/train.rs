@@ -267,8 +267,8 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     let text = std::fs::read_to_string(&cfg_path).map_err(|e| TrainError::io(&cfg_path, e))?;
     let config: DenoiserConfig =
         serde_json::from_str(&text).map_err(|e| TrainError::msg(&cfg_path, format!("not a model config: {e}")))?;
-    // Demodulation, leaving depth out and the exposure key change what input planes mean, not the weights'
-    // shapes, so a model without them may seed one with them.
+    // Demodulation, leaving depth out and the exposure key change what the input planes mean,
+    // not the weights' shapes, so a model without them may seed one with them.
     let config = config
         .with_demodulate(options.config.demodulate)
         .with_depth(options.config.depth)
