@@ -29,10 +29,16 @@ pub const DEFAULT_AO_RAYS: u32 = 20;
 /// off by more than 0.1 rise by half on the Cornell box).
 const REFINE_SPREAD: f32 = 0.2;
 
-/// How far (as a fraction of their separation) a neighbour may leave a point's tangent plane and
-/// still count as the same surface: |d|/2r for a sphere of radius r seen across d, so 0.15
-/// keeps curved surfaces down to r ≈ 3 grid steps together while perpendicular surfaces (≈ 1)
-/// and silhouettes stay apart.
+/// How far (as a fraction of their separation d) two points may leave the plane normal to the sum
+/// of their normals and still count as the same surface. On a sphere the chord between two
+/// points is exactly perpendicular to the sum of their normals, so curved surfaces stay together
+/// whatever their curvature (testing one point's tangent plane alone gives |d|/2r for radius r,
+/// which split the glass scene's tessellated spheres at isolated pixels, where facet normals add
+/// to it); what is left is a tessellation's facet error. Surfaces offset along a shared normal (a
+/// step) and silhouettes stay apart; perpendicular ones fail the normal test first. Against the
+/// one-plane test at 256²: 10% fewer AO evaluations on the glass scene (7,496 to 6,751), 7% on
+/// small-lights, none fewer on the Cornell box, and the same mean error against 1024-ray AO
+/// (0.0118 on the glass scene; its pixels off by more than 0.1 go from 216 to 230 of 65,536).
 const TANGENT_SLACK: f32 = 0.15;
 
 /// A surface point where AO is wanted.
@@ -135,12 +141,14 @@ impl Lattice {
     }
 }
 
-/// Same surface: normals agree and `q` lies close to `pt`'s tangent plane (which holds along
-/// receding planes, unlike a depth comparison).
+/// Same surface: normals agree and the chord between the points runs nearly parallel to their
+/// mean tangent plane, the plane normal to n_p + n_q (which holds along receding planes, unlike a
+/// depth comparison, and on curved surfaces; see [`TANGENT_SLACK`]).
 #[inline]
 fn same_surface(q: &AoPoint, pt: &AoPoint) -> bool {
     let d = q.p - pt.p;
-    q.n.dot(pt.n) > 0.95 && d.dot(pt.n).abs() <= TANGENT_SLACK * d.length() + 1e-6 * pt.depth
+    // The chord's rise out of the mean tangent plane, |d · (n_p + n_q)| / 2, against its length.
+    q.n.dot(pt.n) > 0.95 && 0.5 * d.dot(pt.n + q.n).abs() <= TANGENT_SLACK * d.length() + 1e-6 * pt.depth
 }
 
 /// AO at `pt` interpolated from the lattice points around it, or None where that is not safe:
@@ -255,6 +263,31 @@ pub fn ao_image(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn point(p: Vec3, n: Vec3) -> AoPoint {
+        AoPoint { p, p_error: Vec3::ZERO, n: n.normalize(), depth: 10.0, triangle: 0 }
+    }
+
+    /// Points on a sphere stay one surface however far apart (up to the normal test's 18°), a
+    /// step between parallel planes and a crease between perpendicular ones do not.
+    #[test]
+    fn same_surface_keeps_curved_surfaces_and_splits_steps_and_creases() {
+        let on_sphere = |a: f32| point(Vec3::new(a.sin(), a.cos(), 0.0) * 2.0, Vec3::new(a.sin(), a.cos(), 0.0));
+        let same = same_surface;
+        for a in [0.05f32, 0.15, 0.31] {
+            // |d · n|/|d| = sin(a/2) passes 0.15 at a = 0.31: one tangent plane alone splits it.
+            assert!(same(&on_sphere(a), &on_sphere(0.0)), "{a}");
+            assert!(same(&on_sphere(0.0), &on_sphere(a)), "{a}");
+        }
+        assert!(!same(&on_sphere(0.4), &on_sphere(0.0)), "normals 23° apart");
+        // A step: two floors 0.2 apart seen 0.5 apart sideways.
+        let (lower, upper) = (point(Vec3::ZERO, Vec3::Y), point(Vec3::new(0.5, 0.2, 0.0), Vec3::Y));
+        assert!(!same(&upper, &lower) && !same(&lower, &upper));
+        assert!(same(&point(Vec3::new(0.5, 0.0, 0.3), Vec3::Y), &lower));
+        // A crease: floor and wall, symmetric about the corner.
+        let (floor, wall) = (point(Vec3::new(0.5, 0.0, 0.0), Vec3::Y), point(Vec3::new(0.0, 0.5, 0.0), Vec3::X));
+        assert!(!same(&wall, &floor));
+    }
 
     #[test]
     fn pattern_directions_leave_the_surface_and_are_cosine_distributed() {
