@@ -145,10 +145,24 @@ impl Lattice {
 /// mean tangent plane, the plane normal to n_p + n_q (which holds along receding planes, unlike a
 /// depth comparison, and on curved surfaces; see [`TANGENT_SLACK`]).
 #[inline]
-fn same_surface(q: &AoPoint, pt: &AoPoint) -> bool {
+fn same_surface(q: &Corner, pt: &AoPoint) -> bool {
     let d = q.p - pt.p;
     // The chord's rise out of the mean tangent plane, |d · (n_p + n_q)| / 2, against its length.
     q.n.dot(pt.n) > 0.95 && 0.5 * d.dot(pt.n + q.n).abs() <= TANGENT_SLACK * d.length() + 1e-6 * pt.depth
+}
+
+/// An evaluated lattice point: what interpolation needs of its [`AoPoint`], and its AO.
+#[derive(Debug, Clone, Copy)]
+struct Corner {
+    p: Vec3,
+    n: Vec3,
+    ao: f32,
+}
+
+impl Corner {
+    fn new(pt: &AoPoint, ao: f32) -> Self {
+        Corner { p: pt.p, n: pt.n, ao }
+    }
 }
 
 /// AO at `pt` interpolated from the lattice points around it, or None where that is not safe:
@@ -158,7 +172,7 @@ fn same_surface(q: &AoPoint, pt: &AoPoint) -> bool {
 /// surface lies far behind and does not affect this one's AO.)
 fn interpolate(
     lattice: &Lattice,
-    values: &[Option<(AoPoint, f32)>],
+    values: &[Option<Corner>],
     (x, y): (usize, usize),
     pt: &AoPoint,
     radius: f32,
@@ -166,8 +180,9 @@ fn interpolate(
     let (mut sum, mut wsum) = (0.0, 0.0);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for (g, bw) in lattice.corners(x, y) {
-        let Some((q, ao)) = values[g] else { continue };
-        if !same_surface(&q, pt) {
+        let Some(q) = &values[g] else { continue };
+        let ao = q.ao;
+        if !same_surface(q, pt) {
             if (q.p - pt.p).length() < radius {
                 return None;
             }
@@ -229,18 +244,21 @@ pub fn ao_image(
             }
             needed
         };
-        let values: Vec<Option<(AoPoint, f32)>> = needed
+        let values: Vec<Option<Corner>> = needed
             .par_iter()
             .enumerate()
             .map(|(g, &need)| {
+                if !need {
+                    return None;
+                }
                 let px = lattice.pixel(g);
-                let pt = point(px).filter(|_| need)?;
-                Some((pt, if exact[px].is_nan() { eval(&pt) } else { exact[px] }))
+                let pt = point(px)?;
+                Some(Corner::new(&pt, if exact[px].is_nan() { eval(&pt) } else { exact[px] }))
             })
             .collect();
         for (g, v) in values.iter().enumerate() {
-            if let Some((_, a)) = v {
-                exact[lattice.pixel(g)] = *a;
+            if let Some(c) = v {
+                exact[lattice.pixel(g)] = c.ao;
             }
         }
         ao.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -273,7 +291,7 @@ mod tests {
     #[test]
     fn same_surface_keeps_curved_surfaces_and_splits_steps_and_creases() {
         let on_sphere = |a: f32| point(Vec3::new(a.sin(), a.cos(), 0.0) * 2.0, Vec3::new(a.sin(), a.cos(), 0.0));
-        let same = same_surface;
+        let same = |q: &AoPoint, pt: &AoPoint| same_surface(&Corner::new(q, 0.5), pt);
         for a in [0.05f32, 0.15, 0.31] {
             // |d · n|/|d| = sin(a/2) passes 0.15 at a = 0.31: one tangent plane alone splits it.
             assert!(same(&on_sphere(a), &on_sphere(0.0)), "{a}");

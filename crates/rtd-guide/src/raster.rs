@@ -355,20 +355,29 @@ fn raster_tri(
             if e0c + m0 < 0.0 || e1c + m1 < 0.0 || e2c + m2 < 0.0 {
                 continue;
             }
+            let at = (py * tw + px) * SAMPLES;
+            let (depth, cover) = (&mut depth[at..at + SAMPLES], &mut cover[at..at + SAMPLES]);
+            // Every sample's tests without branches (the compiler runs them across SIMD lanes),
+            // then the stores for the samples that pass: inside all three edges, nearer than what
+            // the sample holds, and with positive perspective-correct weights (in front of the eye).
+            let mut e = [[0.0f32; 2]; SAMPLES];
+            let mut key = [0.0f32; SAMPLES];
+            let mut pass = [false; SAMPLES];
             for s in 0..SAMPLES {
                 let (e0, e1, e2) = (e0c + d0[s], e1c + d1[s], e2c + d2[s]);
-                if e0 < 0.0 || e1 < 0.0 || e2 < 0.0 {
+                e[s] = [e0, e1];
+                key[s] = c.z + e0 * ka + e1 * kb;
+                pass[s] = (e0 >= 0.0)
+                    & (e1 >= 0.0)
+                    & (e2 >= 0.0)
+                    & (key[s] > depth[s])
+                    & (e0 * t.w[0] + e1 * t.w[1] + e2 * t.w[2] > 0.0);
+            }
+            for s in 0..SAMPLES {
+                if !pass[s] {
                     continue;
                 }
-                let key = c.z + e0 * ka + e1 * kb;
-                let k = (py * tw + px) * SAMPLES + s;
-                if !(key > depth[k]) {
-                    continue;
-                }
-                // Perspective-correct weights must be positive (the sample is in front of the eye).
-                if !(e0 * t.w[0] + e1 * t.w[1] + e2 * t.w[2] > 0.0) {
-                    continue;
-                }
+                let [e0, e1] = e[s];
                 if let Some(cut) = cutoff {
                     let bary = t.bary(e0, e1);
                     let tri = &scene.triangles[t.triangle as usize];
@@ -377,8 +386,8 @@ fn raster_tri(
                         continue;
                     }
                 }
-                depth[k] = key;
-                cover[k] = Cover { tri: index, e0, e1 };
+                depth[s] = key[s];
+                cover[s] = Cover { tri: index, e0, e1 };
             }
         }
     }
