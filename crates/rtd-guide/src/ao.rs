@@ -181,7 +181,6 @@ fn interpolate(
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for (g, bw) in lattice.corners(x, y) {
         let Some(q) = &values[g] else { continue };
-        let ao = q.ao;
         if !same_surface(q, pt) {
             if (q.p - pt.p).length() < radius {
                 return None;
@@ -190,10 +189,10 @@ fn interpolate(
         }
         // Bilinear weights over the corners on this pixel's surface.
         let bw = bw.max(1e-3);
-        sum += bw * ao;
+        sum += bw * q.ao;
         wsum += bw;
-        lo = lo.min(ao);
-        hi = hi.max(ao);
+        lo = lo.min(q.ao);
+        hi = hi.max(q.ao);
     }
     (wsum > 0.0 && hi - lo <= REFINE_SPREAD).then(|| sum / wsum)
 }

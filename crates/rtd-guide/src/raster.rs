@@ -360,12 +360,10 @@ fn raster_tri(
             // Every sample's tests without branches (the compiler runs them across SIMD lanes),
             // then the stores for the samples that pass: inside all three edges, nearer than what
             // the sample holds, and with positive perspective-correct weights (in front of the eye).
-            let mut e = [[0.0f32; 2]; SAMPLES];
             let mut key = [0.0f32; SAMPLES];
             let mut pass = [false; SAMPLES];
             for s in 0..SAMPLES {
                 let (e0, e1, e2) = (e0c + d0[s], e1c + d1[s], e2c + d2[s]);
-                e[s] = [e0, e1];
                 key[s] = c.z + e0 * ka + e1 * kb;
                 pass[s] = (e0 >= 0.0)
                     & (e1 >= 0.0)
@@ -377,7 +375,7 @@ fn raster_tri(
                 if !pass[s] {
                     continue;
                 }
-                let [e0, e1] = e[s];
+                let (e0, e1) = (e0c + d0[s], e1c + d1[s]);
                 if let Some(cut) = cutoff {
                     let bary = t.bary(e0, e1);
                     let tri = &scene.triangles[t.triangle as usize];
