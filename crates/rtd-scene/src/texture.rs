@@ -76,11 +76,14 @@ fn wrap_index(i: i64, n: u32, wrap: Wrap) -> usize {
     if (0..n).contains(&i) {
         return i as usize;
     }
+    // i mod m for m > 0; a mask when m is a power of two (two's complement makes that the
+    // Euclidean remainder for negative i too), which spares a 64-bit division on tiled textures.
+    let modulo = |m: i64| if m & (m - 1) == 0 { i & (m - 1) } else { i.rem_euclid(m) };
     (match wrap {
-        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::Repeat => modulo(n),
         Wrap::Clamp => i.clamp(0, n - 1),
         Wrap::Mirror => {
-            let m = i.rem_euclid(2 * n);
+            let m = modulo(2 * n);
             if m < n {
                 m
             } else {
@@ -301,6 +304,29 @@ mod tests {
                     let a = wrap_index(i, n, wrap);
                     assert_eq!(next_index(i, a, n, wrap), wrap_index(i + 1, n, wrap), "{wrap:?} n={n} i={i}");
                 }
+            }
+        }
+    }
+
+    /// Power-of-two sizes wrap with a mask, the others with a division: both must give the
+    /// modes' definitions, for negative and far-out indices too.
+    #[test]
+    fn wrap_index_matches_the_modes_definitions_at_every_size() {
+        for n in 1..=17u32 {
+            let m = n as i64;
+            for i in (-70..70).chain([i64::MIN, i64::MIN + 1, -(1 << 40) - 3, (1 << 40) + 5, i64::MAX - 1, i64::MAX]) {
+                let repeat = i.rem_euclid(m);
+                let mirror = {
+                    let r = i.rem_euclid(2 * m);
+                    if r < m {
+                        r
+                    } else {
+                        2 * m - 1 - r
+                    }
+                };
+                assert_eq!(wrap_index(i, n, Wrap::Repeat), repeat as usize, "repeat n={n} i={i}");
+                assert_eq!(wrap_index(i, n, Wrap::Mirror), mirror as usize, "mirror n={n} i={i}");
+                assert_eq!(wrap_index(i, n, Wrap::Clamp), i.clamp(0, m - 1) as usize, "clamp n={n} i={i}");
             }
         }
     }
