@@ -120,10 +120,13 @@ impl SceneBvh {
             // Slab test of each active ray against the children, four at a time:
             // t = q · (extent / d) + (p − o) / d per plane, entry = max of near planes and the
             // cull distance, exit = min of far planes and tmax.
-            let mut child_rays = [0u32; 8];
+            let mut child_rays = [[0u32; 4]; 2];
             for r in bits(active) {
                 let scale = extent * inv[r];
                 let shift = to_node * inv[r];
+                // Ray r's bit in every lane, as a float's bit pattern (only ever selected, never
+                // computed with), to be merged into the children it reaches without a loop.
+                let bit = Vec4::splat(f32::from_bits(1 << r));
                 for (g, axes) in planes.iter().enumerate() {
                     let mut enter = Vec4::splat(NODE_TMIN);
                     let mut exit = Vec4::splat(tmax_k);
@@ -134,12 +137,13 @@ impl SceneBvh {
                         enter = enter.max(near * s + t);
                         exit = exit.min(far * s + t);
                     }
-                    for j in bits(enter.cmple(exit).bitmask()) {
-                        child_rays[4 * g + j] |= 1 << r;
+                    let reached = Vec4::select(enter.cmple(exit), bit, Vec4::ZERO).to_array().map(f32::to_bits);
+                    for (acc, b) in child_rays[g].iter_mut().zip(reached) {
+                        *acc |= b;
                     }
                 }
             }
-            for (c, &rays_here) in child_rays.iter().enumerate() {
+            for (c, &rays_here) in child_rays.iter().flatten().enumerate() {
                 if rays_here == 0 || node.is_child_empty(c) {
                     continue;
                 }
