@@ -145,8 +145,8 @@ impl SceneBvh {
             }
             let child_rays: [u32; 8] = std::array::from_fn(|c| child_rays[c / 4][c % 4]);
             // The children that some ray reaches, as a mask (tested without branches).
-            let reached = (0..8).fold(0u32, |m, c| m | (((child_rays[c] != 0) & !node.is_child_empty(c)) as u32) << c);
-            for c in bits(reached) {
+            let visit = (0..8).fold(0u32, |m, c| m | (((child_rays[c] != 0) & !node.is_child_empty(c)) as u32) << c);
+            for c in bits(visit) {
                 let rays_here = child_rays[c];
                 if !node.is_leaf(c) {
                     stack.push((node.child_node_index(c), rays_here));
