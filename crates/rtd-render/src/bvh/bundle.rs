@@ -120,7 +120,7 @@ impl SceneBvh {
             // Slab test of each active ray against the children, four at a time:
             // t = q · (extent / d) + (p − o) / d per plane, entry = max of near planes and the
             // cull distance, exit = min of far planes and tmax.
-            let mut child_rays = [[0u32; 4]; 2];
+            let mut child_rays = [0u32; 8];
             for r in bits(active) {
                 let scale = extent * inv[r];
                 let shift = to_node * inv[r];
@@ -138,12 +138,11 @@ impl SceneBvh {
                         exit = exit.min(far * s + t);
                     }
                     let reached = Vec4::select(enter.cmple(exit), bit, Vec4::ZERO).to_array().map(f32::to_bits);
-                    for (acc, b) in child_rays[g].iter_mut().zip(reached) {
+                    for (acc, b) in child_rays[4 * g..4 * g + 4].iter_mut().zip(reached) {
                         *acc |= b;
                     }
                 }
             }
-            let child_rays: [u32; 8] = std::array::from_fn(|c| child_rays[c / 4][c % 4]);
             // The children that some ray reaches, as a mask (tested without branches).
             let visit = (0..8).fold(0u32, |m, c| m | (((child_rays[c] != 0) & !node.is_child_empty(c)) as u32) << c);
             for c in bits(visit) {
