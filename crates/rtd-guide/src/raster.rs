@@ -174,7 +174,24 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
             Some(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2.into()), grad, triangle: i as u32 })
         })
     };
-    scene.triangles.par_iter().enumerate().flat_map_iter(|(i, t)| project(i, t).into_iter().flatten()).collect()
+    // Which of its two possible screen triangles each scene triangle gives (bit k: the k-th),
+    // then every screen triangle built straight into its place in the list. Projecting twice
+    // costs less than merging per-thread pieces: the list is written once, in parallel.
+    let present: Vec<u8> = scene
+        .triangles
+        .par_iter()
+        .enumerate()
+        .map(|(i, t)| project(i, t).iter().enumerate().fold(0, |m, (k, s)| m | (s.is_some() as u8) << k))
+        .collect();
+    let slots: Vec<(u32, usize)> = present
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &m)| (0..2).filter(move |k| m >> k & 1 == 1).map(move |k| (i as u32, k)))
+        .collect();
+    slots
+        .par_iter()
+        .map(|&(i, k)| project(i as usize, &scene.triangles[i as usize])[k].expect("projection is deterministic"))
+        .collect()
 }
 
 /// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
