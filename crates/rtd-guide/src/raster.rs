@@ -183,15 +183,12 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
         .enumerate()
         .map(|(i, t)| project(i, t).iter().enumerate().fold(0, |m, (k, s)| m | (s.is_some() as u8) << k))
         .collect();
-    let slots: Vec<(u32, usize)> = present
+    let slots: Vec<(usize, usize)> = present
         .iter()
         .enumerate()
-        .flat_map(|(i, &m)| (0..2).filter(move |k| m >> k & 1 == 1).map(move |k| (i as u32, k)))
+        .flat_map(|(i, &m)| (0..2).filter(move |k| m >> k & 1 == 1).map(move |k| (i, k)))
         .collect();
-    slots
-        .par_iter()
-        .map(|&(i, k)| project(i as usize, &scene.triangles[i as usize])[k].expect("projection is deterministic"))
-        .collect()
+    slots.par_iter().map(|&(i, k)| project(i, &scene.triangles[i])[k].expect("projection is deterministic")).collect()
 }
 
 /// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
