@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest};
+use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split};
 use rtd::train::train::{train, GrowLevel, TrainOptions};
 use rtd::train::Quiet;
 
@@ -63,6 +63,36 @@ fn datagen_resumes_without_redoing_views_and_splits_by_scene() {
     let bigger = grown.clone().size(32);
     let err = generate_dataset(dir.path(), &bigger, &Quiet).unwrap_err().to_string();
     assert!(err.contains("manifest.json") && err.contains("other options"), "{err}");
+}
+
+#[test]
+fn a_split_renders_only_its_scenes_and_the_same_views() {
+    let dir = tempfile::tempdir().unwrap();
+    let (all_dir, val_dir, train_dir) = (dir.path().join("all"), dir.path().join("val"), dir.path().join("train"));
+    let options = DatasetOptions::default().scenes(3).views_per_scene(1).size(24).reference_spp(16).validation_every(3);
+    let all = generate_dataset(&all_dir, &options, &Quiet).unwrap();
+    let val = generate_dataset(&val_dir, &options.clone().split(Split::Validation), &Quiet).unwrap();
+    let train = generate_dataset(&train_dir, &options.clone().split(Split::Training), &Quiet).unwrap();
+    let scenes = |m: &Manifest| {
+        let mut s: Vec<u64> = m.views.iter().map(|v| v.scene).collect();
+        s.extend(m.rejected.iter().map(|r| r.split('/').next().unwrap().parse::<u64>().unwrap()));
+        s.sort();
+        s
+    };
+    assert_eq!((scenes(&all), scenes(&val), scenes(&train)), (vec![0, 1, 2], vec![2], vec![0, 1]));
+    assert!(!val.views.is_empty() && !train.views.is_empty(), "the byte comparison needs views");
+    for (dir, m) in [(&val_dir, &val), (&train_dir, &train)] {
+        for v in &m.views {
+            assert_eq!(v.validation, v.scene == 2);
+            let bytes = std::fs::read(dir.join(&v.file)).unwrap();
+            assert_eq!(
+                bytes,
+                std::fs::read(all_dir.join(&v.file)).unwrap(),
+                "{} differs from the full dataset's",
+                v.file
+            );
+        }
+    }
 }
 
 #[test]
@@ -125,8 +155,16 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let data = dir.path().join("data");
     tiny_dataset(&data);
     let options = TrainOptions::default().config(tiny_config()).batch(2, 16).steps(4).epoch_steps(4);
-    train(&data, &dir.path().join("a"), &options, false, &Quiet).unwrap();
+    let a = train(&data, &dir.path().join("a"), &options, false, &Quiet).unwrap();
     let a_model = dir.path().join("a/model.bpk");
+    // Training on the 8-spp renders alone, always with every guide layer, sees other batches;
+    // sample counts the dataset lacks are refused, naming its manifest.
+    let focused = options.clone().spp_levels(Some(vec![8])).guide_drop(0.0);
+    let f = train(&data, &dir.path().join("f"), &focused, false, &Quiet).unwrap();
+    assert!(f.losses.len() == a.losses.len() && f.losses != a.losses);
+    let absent = options.clone().spp_levels(Some(vec![3]));
+    let err = train(&data, &dir.path().join("s"), &absent, false, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("manifest.json") && err.contains("sample counts"), "{err}");
     // One step at a negligible rate from a's weights: the result computes what a does, and
     // differs from a fresh network.
     let tuned = options.clone().steps(1).learning_rate(1e-12).init(Some(a_model.clone()));

@@ -104,20 +104,28 @@ pub struct CropSampler {
     encoded: Vec<Encoded>,
     /// Crop side in pixels.
     pub crop: usize,
+    /// Probability that a crop loses its albedo+normal layers, and (independently) its
+    /// AO+depth layers.
+    pub drop_probability: f32,
 }
 
-/// Probability that a crop loses its albedo+normal (and, independently, AO+depth) layers, so
-/// the model also serves colour + guide RGB inputs from other software.
+/// Default probability that a crop loses its albedo+normal (and, independently, AO+depth)
+/// layers, so the model also serves colour + guide RGB inputs from other software.
 pub const DROP_PROBABILITY: f32 = 0.3;
 
 impl CropSampler {
-    /// Encodes every view at every stored sample count as `encoding` says (demodulating colour
-    /// and target by the albedo if it demodulates).
-    pub fn new(views: &[View], crop: usize, encoding: Encoding) -> Result<Self, TrainError> {
+    /// Encodes every view at every stored sample count (or only those in `spp_levels`) as
+    /// `encoding` says (demodulating colour and target by the albedo if it demodulates).
+    pub fn new(
+        views: &[View],
+        crop: usize,
+        encoding: Encoding,
+        spp_levels: Option<&[u32]>,
+    ) -> Result<Self, TrainError> {
         let demodulate = encoding.demodulate;
         let mut encoded = vec![];
         for v in views {
-            for (spp, _) in &v.noisy {
+            for (spp, _) in v.noisy.iter().filter(|(spp, _)| spp_levels.is_none_or(|l| l.contains(spp))) {
                 let input = v.input(*spp);
                 let e = encoding.exposure(input.color);
                 let planes = encode_planes(&input, e, encoding)?;
@@ -126,7 +134,18 @@ impl CropSampler {
                 encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, plain });
             }
         }
-        Ok(CropSampler { encoded, crop })
+        Ok(CropSampler { encoded, crop, drop_probability: DROP_PROBABILITY })
+    }
+
+    /// Sets the probability that a crop loses each optional pair of guide layers.
+    pub fn drop_probability(mut self, p: f32) -> Self {
+        self.drop_probability = p;
+        self
+    }
+
+    /// Number of encoded (view, sample count) pairs that crops are cut from.
+    pub fn sources(&self) -> usize {
+        self.encoded.len()
     }
 
     /// A batch of `n` crops for step `step` (a pure function of seed and step, so a resumed run
@@ -141,8 +160,8 @@ impl CropSampler {
             let (flip_x, flip_y, transpose) = (rng.random::<bool>(), rng.random::<bool>(), rng.random::<bool>());
             let mut perm = [0usize, 1, 2];
             perm.shuffle(&mut rng);
-            let drop_an = rng.random::<f32>() < DROP_PROBABILITY;
-            let drop_ad = rng.random::<f32>() < DROP_PROBABILITY;
+            let drop_an = rng.random::<f32>() < self.drop_probability;
+            let drop_ad = rng.random::<f32>() < self.drop_probability;
             let black = rng.random::<f32>() < 0.02;
             // Source pixel of crop pixel (x, y) after the flips and transpose.
             let src = |x: usize, y: usize| {
@@ -232,7 +251,8 @@ mod tests {
     #[test]
     fn batches_are_reproducible_and_augmentations_keep_input_and_target_aligned() {
         for demodulate in [false, true] {
-            let sampler = CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }).unwrap();
+            let sampler =
+                CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }, None).unwrap();
             let (x1, y1) = sampler.batch(3, 17, 4);
             let (x2, y2) = sampler.batch(3, 17, 4);
             assert_eq!((x1.clone(), y1.clone()), (x2, y2));
@@ -248,10 +268,33 @@ mod tests {
             }
         }
         // Demodulation divides by albedo + eps: the toy's blue albedo 0.6 scales colour by 1/0.61.
-        let sampler =
-            |demodulate| CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }).unwrap();
+        let sampler = |demodulate| {
+            CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }, None).unwrap()
+        };
         let (plain, demod) = (sampler(false), sampler(true));
         assert_ne!(plain.encoded[0].planes[..192], demod.encoded[0].planes[..192]);
         assert_eq!(plain.encoded[0].planes[192..], demod.encoded[0].planes[192..]);
+    }
+
+    #[test]
+    fn spp_levels_choose_the_sources_and_the_drop_probability_is_obeyed() {
+        let mut view = toy_view();
+        view.noisy.push((8, view.noisy[0].1.clone()));
+        let views = [view];
+        let sampler = |levels: Option<&[u32]>| CropSampler::new(&views, 8, Encoding::default(), levels).unwrap();
+        assert_eq!(sampler(None).sources(), 2);
+        assert_eq!(sampler(Some(&[8, 16])).sources(), 1);
+        assert_eq!(sampler(Some(&[16])).sources(), 0);
+        // Channel 14 flags the albedo + normal pair, channel 15 the AO + depth pair: 1 where
+        // given, 0 where the crop dropped them.
+        let flags = |p: f32| {
+            let (x, _) = sampler(None).drop_probability(p).batch(5, 0, 64);
+            let px = 64;
+            (0..64).map(|b| (x[(b * INPUT_CHANNELS + 14) * px], x[(b * INPUT_CHANNELS + 15) * px])).collect::<Vec<_>>()
+        };
+        assert!(flags(0.0).iter().all(|&f| f == (1.0, 1.0)));
+        assert!(flags(1.0).iter().all(|&f| f == (0.0, 0.0)));
+        let half = flags(0.5);
+        assert!(half.contains(&(1.0, 1.0)) && half.contains(&(0.0, 0.0)) && half.contains(&(1.0, 0.0)));
     }
 }

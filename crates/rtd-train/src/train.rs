@@ -13,7 +13,7 @@ use rtd_denoise::{grow, Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
 use rtd_image::metrics;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{load_views, CropSampler, View};
+use crate::data::{load_views, CropSampler, View, DROP_PROBABILITY};
 use crate::{Progress, TrainError};
 
 /// Training options, builder style.
@@ -46,6 +46,17 @@ pub struct TrainOptions {
     /// config; see [`rtd_denoise::grow`]).
     #[serde(default)]
     pub grow: Option<GrowLevel>,
+    /// Train only on the noisy renders at these sample counts (`None`: every stored count).
+    #[serde(default)]
+    pub spp_levels: Option<Vec<u32>>,
+    /// Probability that a crop loses its albedo+normal layers, and (independently) its AO+depth
+    /// layers, so the model also serves inputs with the guide RGB alone.
+    #[serde(default = "default_guide_drop")]
+    pub guide_drop: f32,
+}
+
+fn default_guide_drop() -> f32 {
+    DROP_PROBABILITY
 }
 
 /// A coarser level to add to a trained network: its channels and bottleneck blocks.
@@ -78,6 +89,8 @@ impl Default for TrainOptions {
             init: None,
             gradient_loss: 0.0,
             grow: None,
+            spp_levels: None,
+            guide_drop: DROP_PROBABILITY,
         }
     }
 }
@@ -123,6 +136,17 @@ impl TrainOptions {
     /// Sets the weight of the gradient term of the loss (see [`training_loss`]).
     pub fn gradient_loss(mut self, w: f32) -> Self {
         self.gradient_loss = w.max(0.0);
+        self
+    }
+    /// Trains only on the noisy renders at these sample counts (`None`: all of them).
+    pub fn spp_levels(mut self, levels: Option<Vec<u32>>) -> Self {
+        self.spp_levels = levels;
+        self
+    }
+    /// Sets the probability that a crop loses each optional pair of guide layers (clamped to
+    /// [0, 1]).
+    pub fn guide_drop(mut self, p: f32) -> Self {
+        self.guide_drop = p.clamp(0.0, 1.0);
         self
     }
     /// Sets steps per epoch.
@@ -332,7 +356,16 @@ pub fn train(
     if train_views.is_empty() {
         return Err(TrainError::msg(&data.join("manifest.json"), "has no training views"));
     }
-    let sampler = CropSampler::new(&train_views, options.crop, options.config.encoding())?;
+    let sampler =
+        CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
+            .drop_probability(options.guide_drop);
+    if sampler.sources() == 0 {
+        let levels = options.spp_levels.clone().unwrap_or_default();
+        return Err(TrainError::msg(
+            &data.join("manifest.json"),
+            format!("has no noisy renders at the sample counts trained on ({levels:?})"),
+        ));
+    }
     progress.start(options.steps, "train");
     progress.inc(state.step);
     let mut epoch_start = Instant::now();

@@ -96,6 +96,14 @@ pub struct TrainArgs {
     /// Weight of an extra L1 term on the error's neighbour differences (sharper edges; 0: off).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
     pub gradient_loss: f32,
+    /// Train only on the noisy renders at these sample counts (comma-separated, e.g. 4,8,16;
+    /// default: every count the dataset has).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+    pub spp_levels: Vec<u32>,
+    /// Probability that a training crop loses its albedo + normal layers, and independently its
+    /// AO + depth layers, so the model also serves colour + guide RGB alone.
+    #[arg(long, default_value_t = 0.3, value_parser = probability)]
+    pub guide_drop: f32,
     /// Continue the run in --output after an interruption.
     #[arg(long)]
     pub resume: bool,
@@ -297,14 +305,30 @@ pub struct DatagenArgs {
     /// Reference samples per pixel (doubled where the reference stays noisy).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
     pub reference_spp: u32,
+    /// Render only these scenes: `validation` makes just the held-out views (every 6th scene),
+    /// enough to score a model in about a sixth of the time; `training` the rest. A view is the
+    /// same bytes whichever split renders it.
+    #[arg(long, value_enum, default_value_t = SplitArg::All)]
+    pub split: SplitArg,
     /// Instead of generating: re-render the guide layers of the existing dataset's views in place
     /// with the current guide pass (noisy renders and references are kept). The dataset's own
     /// settings apply, so the generation options cannot be given with it.
-    #[arg(long, conflicts_with_all = ["seed", "scenes", "views", "size", "reference_spp"])]
+    #[arg(long, conflicts_with_all = ["seed", "scenes", "views", "size", "reference_spp", "split"])]
     pub refresh_guides: bool,
     /// Hide the progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// Which scenes `rtd datagen` renders.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum SplitArg {
+    /// Every scene.
+    All,
+    /// Only the training scenes.
+    Training,
+    /// Only the held-out validation scenes.
+    Validation,
 }
 
 /// Tonemap choice for 8-bit outputs.
@@ -454,6 +478,15 @@ fn non_negative_weight(s: &str) -> Result<f32, String> {
         Ok(v)
     } else {
         Err(format!("{v} is not in [0, 100]"))
+    }
+}
+
+fn probability(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a probability in [0, 1]"))
     }
 }
 

@@ -1,10 +1,10 @@
 //! `rtd datagen` and `rtd train`: thin wrappers over `rtd_train`.
 
 use rtd_denoise::DenoiserConfig;
-use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions};
+use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions, Split};
 use rtd_train::train::{GrowLevel, TrainOptions, TrainState};
 
-use crate::args::{DatagenArgs, TrainArgs, VariantArg};
+use crate::args::{DatagenArgs, SplitArg, TrainArgs, VariantArg};
 use crate::progress::TaskBar;
 
 /// Runs `rtd datagen`.
@@ -24,7 +24,12 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
         .scenes(args.scenes)
         .views_per_scene(args.views as usize)
         .size(args.size)
-        .reference_spp(args.reference_spp);
+        .reference_spp(args.reference_spp)
+        .split(match args.split {
+            SplitArg::All => Split::All,
+            SplitArg::Training => Split::Training,
+            SplitArg::Validation => Split::Validation,
+        });
     let bar = TaskBar::new(args.quiet);
     let manifest = generate_dataset(&args.output, &options, &bar)?;
     bar.finish();
@@ -73,6 +78,8 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         .init(args.init.clone())
         .grow(grow)
         .gradient_loss(args.gradient_loss)
+        .spp_levels((!args.spp_levels.is_empty()).then(|| args.spp_levels.clone()))
+        .guide_drop(args.guide_drop)
         .seed(args.seed)
         .steps(args.steps)
         .batch(args.batch as usize, args.crop as usize)
