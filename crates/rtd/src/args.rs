@@ -471,25 +471,27 @@ fn parse_fov(s: &str) -> Result<f32, String> {
     }
 }
 
-/// A learning rate in (0, 1].
+/// A number in [lo, hi].
+fn f32_within(s: &str, lo: f32, hi: f32) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in [{lo}, {hi}]"))
+    }
+}
+
+/// A loss weight in [0, 100].
 fn non_negative_weight(s: &str) -> Result<f32, String> {
-    let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
-    if (0.0..=100.0).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{v} is not in [0, 100]"))
-    }
+    f32_within(s, 0.0, 100.0)
 }
 
+/// A probability in [0, 1].
 fn probability(s: &str) -> Result<f32, String> {
-    let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
-    if (0.0..=1.0).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{v} is not a probability in [0, 1]"))
-    }
+    f32_within(s, 0.0, 1.0)
 }
 
+/// A learning rate in (0, 1].
 fn positive_rate(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
     if v > 0.0 && v <= 1.0 {
