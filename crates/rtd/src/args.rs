@@ -102,7 +102,7 @@ pub struct TrainArgs {
     pub spp_levels: Vec<u32>,
     /// Probability that a training crop loses its albedo + normal layers, and independently its
     /// AO + depth layers, so the model also serves colour + guide RGB alone.
-    #[arg(long, default_value_t = 0.3, value_parser = probability)]
+    #[arg(long, default_value_t = rtd_train::data::DROP_PROBABILITY, value_parser = probability)]
     pub guide_drop: f32,
     /// Continue the run in --output after an interruption.
     #[arg(long)]
