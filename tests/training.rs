@@ -165,6 +165,10 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let absent = options.clone().spp_levels(Some(vec![3]));
     let err = train(&data, &dir.path().join("s"), &absent, false, &Quiet).unwrap_err().to_string();
     assert!(err.contains("manifest.json") && err.contains("sample counts"), "{err}");
+    // Also when only some are absent, and before the run directory is made.
+    let partly = options.clone().spp_levels(Some(vec![3, 8]));
+    let err = train(&data, &dir.path().join("p"), &partly, false, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("[3]") && !dir.path().join("p").exists(), "{err}");
     // One step at a negligible rate from a's weights: the result computes what a does, and
     // differs from a fresh network.
     let tuned = options.clone().steps(1).learning_rate(1e-12).init(Some(a_model.clone()));

@@ -143,11 +143,6 @@ impl CropSampler {
         self
     }
 
-    /// Number of encoded (view, sample count) pairs that crops are cut from.
-    pub fn sources(&self) -> usize {
-        self.encoded.len()
-    }
-
     /// A batch of `n` crops for step `step` (a pure function of seed and step, so a resumed run
     /// sees the same batches): inputs [n, C, s, s] and targets [n, 3, s, s], channel-major.
     pub fn batch(&self, seed: u64, step: u64, n: usize) -> (Vec<f32>, Vec<f32>) {
@@ -282,9 +277,9 @@ mod tests {
         view.noisy.push((8, view.noisy[0].1.clone()));
         let views = [view];
         let sampler = |levels: Option<&[u32]>| CropSampler::new(&views, 8, Encoding::default(), levels).unwrap();
-        assert_eq!(sampler(None).sources(), 2);
-        assert_eq!(sampler(Some(&[8, 16])).sources(), 1);
-        assert_eq!(sampler(Some(&[16])).sources(), 0);
+        assert_eq!(sampler(None).encoded.len(), 2);
+        assert_eq!(sampler(Some(&[8, 16])).encoded.len(), 1);
+        assert_eq!(sampler(Some(&[16])).encoded.len(), 0);
         // Channel 14 flags the albedo + normal pair, channel 15 the AO + depth pair: 1 where
         // given, 0 where the crop dropped them.
         let flags = |p: f32| {

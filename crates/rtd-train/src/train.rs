@@ -14,6 +14,7 @@ use rtd_image::metrics;
 use serde::{Deserialize, Serialize};
 
 use crate::data::{load_views, CropSampler, View, DROP_PROBABILITY};
+use crate::dataset::Manifest;
 use crate::{Progress, TrainError};
 
 /// Training options, builder style.
@@ -317,6 +318,17 @@ pub fn train(
     resume: bool,
     progress: &dyn Progress,
 ) -> Result<TrainState, TrainError> {
+    if let Some(levels) = &options.spp_levels {
+        // Checked against the manifest before any view is loaded or any file written.
+        let stored = Manifest::load(data)?.noisy_spp;
+        let missing: Vec<u32> = levels.iter().copied().filter(|l| !stored.contains(l)).collect();
+        if !missing.is_empty() {
+            return Err(TrainError::msg(
+                &data.join("manifest.json"),
+                format!("has no noisy renders at the sample counts {missing:?} (it stores {stored:?})"),
+            ));
+        }
+    }
     std::fs::create_dir_all(out).map_err(|e| TrainError::io(out, e))?;
     let files = RunFiles::new(out);
     let device = Device::flex().autodiff();
@@ -359,13 +371,6 @@ pub fn train(
     let sampler =
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
             .drop_probability(options.guide_drop);
-    if sampler.sources() == 0 {
-        let levels = options.spp_levels.clone().unwrap_or_default();
-        return Err(TrainError::msg(
-            &data.join("manifest.json"),
-            format!("has no noisy renders at the sample counts trained on ({levels:?})"),
-        ));
-    }
     progress.start(options.steps, "train");
     progress.inc(state.step);
     let mut epoch_start = Instant::now();
