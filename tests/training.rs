@@ -196,6 +196,19 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
     assert_eq!((cfg.channels.len(), &cfg), (3, &grown_config));
     assert!(diff(&run("a"), &run("g")) < 1e-4, "the grown network did not start from a's function");
+    // Deepened by blocks at both levels (`rtd train --deepen 1,1`): starts near a's function
+    // (each new block adds only its quiet bias), and more entries than levels are refused.
+    let deeper = tuned.clone().deepen(Some(vec![1, 1]));
+    let deeper = deeper.clone().config(deeper.grown_config(&tiny_config()));
+    train(&data, &dir.path().join("h"), &deeper, false, &Quiet).unwrap();
+    let cfg: rtd::denoise::DenoiserConfig =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("h/model.json")).unwrap()).unwrap();
+    assert_eq!((cfg.level_blocks, cfg.bottleneck_blocks), (Some(vec![1]), 2));
+    let moved = diff(&run("a"), &run("h"));
+    assert!(moved > 0.0 && moved < 1e-2, "the deepened network moved by {moved}");
+    let too_many = tuned.clone().deepen(Some(vec![1, 1, 1]));
+    let err = train(&data, &dir.path().join("i"), &too_many, false, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("model.json") && err.contains("2 levels"), "{err}");
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();
@@ -220,5 +233,29 @@ fn refreshing_guides_rewrites_guide_layers_only() {
     let refreshed = rtd::image::read_exr(&file).unwrap();
     for name in ["albedo.R", "guide.G", "ao.Y", "depth.Z", "normal.X", "noisy8.R", "reference.B"] {
         assert_eq!(refreshed.get(name), original.get(name), "{name}");
+    }
+}
+
+/// `rtd bench validation --save-images`: one EXR per validation view, and those images, read
+/// back as an external method, score exactly what the report gives rtd with all guides.
+#[test]
+fn validation_saves_rtd_outputs_that_score_as_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let manifest = tiny_dataset(&data);
+    let saved = dir.path().join("saved");
+    std::fs::create_dir_all(&saved).unwrap();
+    let model = rtd::denoise::Denoiser::builtin().unwrap();
+    let report = rtd::train::evaluate::validation_report(&data, &model, 8, &[], Some(saved.as_path()), &Quiet).unwrap();
+    let validation: Vec<_> = manifest.views.iter().filter(|v| v.validation).collect();
+    assert_eq!(report.views.len(), validation.len());
+    assert_eq!(std::fs::read_dir(&saved).unwrap().count(), validation.len());
+    let external = vec![("saved".to_string(), saved.clone())];
+    let again = rtd::train::evaluate::validation_report(&data, &model, 8, &external, None, &Quiet).unwrap();
+    for v in &again.views {
+        let psnr = |name: &str| v.methods.iter().find(|(n, _)| n == name).unwrap().1.psnr;
+        assert!(psnr("rtd (all guides)").is_finite());
+        assert_eq!(psnr("saved"), psnr("rtd (all guides)"), "{}", v.view);
+        assert_ne!(psnr("saved"), psnr("noisy"), "{}", v.view);
     }
 }

@@ -78,11 +78,15 @@ pub fn tune_filter(views: &[View], spp: u32) -> Result<GuidedFilter, TrainError>
 
 /// Runs the comparison. `external` optionally names directories whose `<view>.exr` (the view's
 /// file stem) holds another denoiser's output, added as a method named after the directory.
+/// `save`, if given, is a directory that receives rtd's all-guides output of each view as
+/// `<view>.exr` (`R,G,B`), the layout `external` reads, so two models' outputs can be compared
+/// or inspected.
 pub fn validation_report(
     data: &Path,
     model: &Denoiser,
     spp: u32,
     external: &[(String, std::path::PathBuf)],
+    save: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<ValidationReport, TrainError> {
     let train = load_views(data, false)?;
@@ -104,6 +108,11 @@ pub fn validation_report(
             (METHODS[4].into(), filter.filter(&input)?),
         ];
         let stem = Path::new(&v.record.file).file_stem().and_then(|s| s.to_str()).unwrap_or_default().to_string();
+        if let Some(dir) = save {
+            let mut layers = rtd_image::Layers::new(color.width, color.height);
+            layers.push_rgb("", &methods[1].1);
+            rtd_image::write_exr(&dir.join(format!("{stem}.exr")), &layers)?;
+        }
         for (name, dir) in external {
             let path = dir.join(format!("{stem}.exr"));
             let layers = rtd_image::read_exr(&path)?;

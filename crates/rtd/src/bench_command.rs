@@ -88,8 +88,18 @@ fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
     let model = load_model(args.model.as_ref())?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+    if let Some(dir) = &args.save_images {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create directory", dir.display()))?;
+    }
     let bar = TaskBar::new(args.quiet);
-    let report = rtd_train::evaluate::validation_report(&args.data, &model, args.spp, &args.external, &bar)?;
+    let report = rtd_train::evaluate::validation_report(
+        &args.data,
+        &model,
+        args.spp,
+        &args.external,
+        args.save_images.as_deref(),
+        &bar,
+    )?;
     bar.finish();
     write_json(&args.output.join("report.json"), &report)?;
     let md = report.markdown();
