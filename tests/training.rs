@@ -196,19 +196,6 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
     assert_eq!((cfg.channels.len(), &cfg), (3, &grown_config));
     assert!(diff(&run("a"), &run("g")) < 1e-4, "the grown network did not start from a's function");
-    // Deepened by blocks at both levels (`rtd train --deepen 1,1`): starts near a's function
-    // (each new block adds only its quiet bias), and more entries than levels are refused.
-    let deeper = tuned.clone().deepen(Some(vec![1, 1]));
-    let deeper = deeper.clone().config(deeper.grown_config(&tiny_config()));
-    train(&data, &dir.path().join("h"), &deeper, false, &Quiet).unwrap();
-    let cfg: rtd::denoise::DenoiserConfig =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("h/model.json")).unwrap()).unwrap();
-    assert_eq!((cfg.level_blocks, cfg.bottleneck_blocks), (Some(vec![1]), 2));
-    let moved = diff(&run("a"), &run("h"));
-    assert!(moved > 0.0 && moved < 1e-2, "the deepened network moved by {moved}");
-    let too_many = tuned.clone().deepen(Some(vec![1, 1, 1]));
-    let err = train(&data, &dir.path().join("i"), &too_many, false, &Quiet).unwrap_err().to_string();
-    assert!(err.contains("model.json") && err.contains("2 levels"), "{err}");
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();

@@ -1,5 +1,4 @@
-//! Growing a trained network by one coarser level, or by more inception blocks at its levels,
-//! without changing (or, for blocks, hardly changing) what it computes.
+//! Growing a trained network by one coarser level, without changing what it computes.
 //!
 //! [`add_level`] appends a level below the coarsest: 2× max-pool, a new encoder block and new
 //! bottleneck blocks, and a decoder that fuses their upsampled output with the old coarsest
@@ -10,16 +9,11 @@
 //! weights get gradients once the fuse's weights on the upsampled half move off zero. This lets
 //! a model gain receptive field and low-frequency capacity from where earlier training left it
 //! instead of from random weights.
-//!
-//! [`add_blocks`] appends residual inception blocks at chosen levels. Each new block's mixing
-//! convolution starts with zero weights and a small positive bias ([`QUIET_BIAS`]), so the block
-//! adds that constant to its input's features and nothing else; the bias keeps the ReLU after the
-//! mix open, so its weights get gradients from the first step and training brings the block in.
 
 use burn::module::Param;
 use burn::tensor::{Device, Tensor, TensorData};
 
-use crate::model::{conv, Decoder, DenoiserConfig, DenoiserNet, InceptionBlock};
+use crate::model::{conv, Decoder, DenoiserConfig, DenoiserNet};
 
 /// The config of `config` grown by a coarsest level of `channels` channels with `blocks`
 /// bottleneck blocks; the old bottleneck becomes the old coarsest level's blocks.
@@ -86,57 +80,6 @@ fn identity_decoder(coarse: usize, c: usize, device: &Device) -> Decoder {
     d
 }
 
-/// The bias each new block's mixing convolution starts with (its weights start at zero): large
-/// enough to keep the ReLU after it open, so the weights get gradients, and small enough that the
-/// block barely changes what the network computes.
-pub const QUIET_BIAS: f32 = 1e-3;
-
-/// The config of `config` with `added[l]` more inception blocks at level `l` (full resolution
-/// first; the coarsest level's go to the bottleneck). Missing entries add none.
-pub fn deepened_config(config: &DenoiserConfig, added: &[usize]) -> DenoiserConfig {
-    let levels = config.channels.len();
-    let more = |l: usize| added.get(l).copied().unwrap_or(0);
-    let mut deeper = config.clone();
-    if levels > 1 {
-        deeper.level_blocks = Some((0..levels - 1).map(|l| config.blocks_at(l) + more(l)).collect());
-    }
-    deeper.bottleneck_blocks = config.bottleneck_blocks + more(levels - 1);
-    deeper
-}
-
-/// `net` (built from `config`) with `added[l]` more residual inception blocks after the blocks
-/// at level `l`, each starting as its input plus [`QUIET_BIAS`]; returns it with its config. The
-/// new blocks' branch convolutions are random (seeded by the device).
-pub fn add_blocks(
-    net: DenoiserNet,
-    config: &DenoiserConfig,
-    added: &[usize],
-    device: &Device,
-) -> (DenoiserNet, DenoiserConfig) {
-    let deeper = deepened_config(config, added);
-    let fresh = deeper.init(device);
-    // Keeps a level's trained blocks and appends the fresh net's blocks past them, quietened.
-    let extend = |old: Vec<InceptionBlock>, new: Vec<InceptionBlock>| -> Vec<InceptionBlock> {
-        let kept = old.len();
-        old.into_iter().chain(new.into_iter().skip(kept).map(|b| quiet(b, device))).collect()
-    };
-    let mut old_levels = net.level_blocks;
-    old_levels.resize_with(fresh.level_blocks.len(), Vec::new);
-    let level_blocks = old_levels.into_iter().zip(fresh.level_blocks).map(|(o, n)| extend(o, n)).collect();
-    let net = DenoiserNet { level_blocks, bottleneck: extend(net.bottleneck, fresh.bottleneck), ..net };
-    (net, deeper)
-}
-
-/// `block` with its mixing convolution set to zero weights and a [`QUIET_BIAS`] bias.
-fn quiet(mut block: InceptionBlock, device: &Device) -> InceptionBlock {
-    let [cout, cin, _, _] = block.mix.weight.dims();
-    block.mix.weight =
-        Param::from_tensor(Tensor::from_data(TensorData::new(vec![0.0f32; cout * cin], [cout, cin, 1, 1]), device));
-    block.mix.bias =
-        Some(Param::from_tensor(Tensor::from_data(TensorData::new(vec![QUIET_BIAS; cout], [cout]), device)));
-    block
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,48 +144,5 @@ mod tests {
         d.fuse.weight = d.fuse.weight.clone().map(|w| w + 0.05);
         let worst = max_diff(&before, &run(&net, &x));
         assert!(worst > 1e-3, "the new level does not reach the output ({worst})");
-    }
-
-    /// Deepening adds the blocks the config says, barely moves the function (the quiet bias's
-    /// shift), and the new blocks matter: with their mixing weights perturbed the output moves
-    /// far more.
-    #[test]
-    fn a_deepened_network_starts_near_the_old_function() {
-        let (device, config, net, x, before) = small_net(7, 2);
-        let (deep, deeper) = add_blocks(net.clone(), &config, &[1, 2], &device);
-        assert_eq!((deeper.level_blocks.clone(), deeper.bottleneck_blocks), (Some(vec![1]), 3));
-        assert_eq!((deep.level_blocks[0].len(), deep.bottleneck.len()), (1, 3));
-        assert!(deeper.macs_per_pixel() > config.macs_per_pixel());
-        assert!(deeper.receptive_radius() > config.receptive_radius());
-        let after = run(&deep, &x);
-        let worst = max_diff(&before, &after);
-        assert!(worst > 0.0 && worst < 1e-2, "deepened output differs by {worst}");
-        // The old blocks are kept as they were, the new ones after them.
-        use burn::module::Module;
-        let reloaded = deeper.init(&device).load_record(deep.clone().into_record());
-        assert_eq!(after, run(&reloaded, &x));
-        let mut loud = deep;
-        let b = loud.level_blocks[0].last_mut().unwrap();
-        b.mix.weight = b.mix.weight.clone().map(|w| w + 0.05);
-        assert!(max_diff(&before, &run(&loud, &x)) > 10.0 * worst, "the new block does not reach the output");
-        // Deepening by nothing is the identity on the config.
-        assert_eq!(deepened_config(&config, &[]), config.clone().with_level_blocks(Some(vec![0])));
-    }
-
-    /// The new blocks' mixing weights get gradients from the first step (the quiet bias keeps
-    /// the ReLU after them open), so training can bring them in.
-    #[test]
-    fn new_blocks_get_gradients_at_once() {
-        let device = Device::flex().autodiff();
-        device.seed(8);
-        let config = DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(1);
-        let (net, _) = add_blocks(config.init(&device), &config, &[1, 1], &device);
-        let loss = net.forward(input(1, 16, 24, &device)).powf_scalar(2.0).mean();
-        let grads = loss.backward();
-        for block in [net.level_blocks[0].last().unwrap(), net.bottleneck.last().unwrap()] {
-            let g = block.mix.weight.val().grad(&grads).expect("a gradient for the new mix");
-            let g: Vec<f32> = g.into_data().try_to_vec().unwrap();
-            assert!(g.iter().any(|v| v.abs() > 1e-6), "no gradient reaches a new block");
-        }
     }
 }

@@ -47,11 +47,6 @@ pub struct TrainOptions {
     /// config; see [`rtd_denoise::grow`]).
     #[serde(default)]
     pub grow: Option<GrowLevel>,
-    /// Add this many inception blocks at each level of the `init` network (full resolution
-    /// first), after any `grow`, before training (then `config` is the deepened config; see
-    /// [`grow::add_blocks`]).
-    #[serde(default)]
-    pub deepen: Option<Vec<usize>>,
     /// Train only on the noisy renders at these sample counts (`None`: every stored count).
     #[serde(default)]
     pub spp_levels: Option<Vec<u32>>,
@@ -95,7 +90,6 @@ impl Default for TrainOptions {
             init: None,
             gradient_loss: 0.0,
             grow: None,
-            deepen: None,
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
         }
@@ -139,20 +133,6 @@ impl TrainOptions {
     pub fn grow(mut self, level: Option<GrowLevel>) -> Self {
         self.grow = level;
         self
-    }
-    /// Adds inception blocks per level to the `init` network (after any `grow`) before
-    /// training; `config` must then be the deepened config ([`TrainOptions::grown_config`]).
-    pub fn deepen(mut self, added: Option<Vec<usize>>) -> Self {
-        self.deepen = added;
-        self
-    }
-    /// `init`'s config as this run's `grow` and `deepen` change it: what `config` must be.
-    pub fn grown_config(&self, init: &DenoiserConfig) -> DenoiserConfig {
-        let grown = self.grow.map_or(init.clone(), |g| g.grown(init));
-        match &self.deepen {
-            Some(added) => grow::deepened_config(&grown, added),
-            None => grown,
-        }
     }
     /// Sets the weight of the gradient term of the loss (see [`training_loss`]).
     pub fn gradient_loss(mut self, w: f32) -> Self {
@@ -303,7 +283,7 @@ fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser
 }
 
 /// Random weights, or those of `options.init` after checking its config matches (grown by
-/// `options.grow` and deepened by `options.deepen` if set).
+/// `options.grow` if set).
 fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, TrainError> {
     let Some(path) = &options.init else {
         return Ok(options.config.init(device));
@@ -318,22 +298,13 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
         .with_demodulate(options.config.demodulate)
         .with_depth(options.config.depth)
         .with_exposure_key(options.config.exposure_key);
-    let levels = config.channels.len() + usize::from(options.grow.is_some());
-    if let Some(added) = options.deepen.as_ref().filter(|a| a.len() > levels) {
-        let message = format!("has {levels} levels, but blocks are to be added at {}", added.len());
-        return Err(TrainError::msg(&cfg_path, message));
-    }
-    if options.grown_config(&config) != options.config {
+    if options.grow.map_or(config.clone(), |g| g.grown(&config)) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
     let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    let (net, config) = match options.grow {
-        Some(g) => grow::add_level(net, &config, g.channels, g.blocks, device),
-        None => (net, config),
-    };
-    Ok(match &options.deepen {
-        Some(added) => grow::add_blocks(net, &config, added, device).0,
+    Ok(match options.grow {
+        Some(g) => grow::add_level(net, &config, g.channels, g.blocks, device).0,
         None => net,
     })
 }

@@ -93,11 +93,6 @@ pub struct TrainArgs {
     /// Inception blocks at the level that --grow adds.
     #[arg(long, default_value_t = 2, requires = "grow", value_parser = clap::value_parser!(u32).range(0..=16))]
     pub grow_blocks: u32,
-    /// With --init: add this many residual inception blocks at each level (comma-separated, full
-    /// resolution first, e.g. 0,2,1), after --grow's level if any. Each starts as its input plus a
-    /// tiny constant, so training begins from nearly the --init model's function.
-    #[arg(long, requires = "init", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub deepen: Vec<u32>,
     /// Weight of an extra L1 term on the error's neighbour differences (sharper edges; 0: off).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
     pub gradient_loss: f32,

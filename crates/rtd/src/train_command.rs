@@ -71,13 +71,12 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         None => config,
     };
     let grow = args.grow.map(|c| GrowLevel { channels: c as usize, blocks: args.grow_blocks as usize });
-    let deepen = (!args.deepen.is_empty()).then(|| args.deepen.iter().map(|&n| n as usize).collect());
-    let shape = TrainOptions::default().grow(grow).deepen(deepen);
-    let mut options = shape
-        .clone()
-        .config(shape.grown_config(&config))
+    let config = grow.map_or(config.clone(), |g| g.grown(&config));
+    let mut options = TrainOptions::default()
+        .config(config)
         .learning_rate(args.lr)
         .init(args.init.clone())
+        .grow(grow)
         .gradient_loss(args.gradient_loss)
         .spp_levels((!args.spp_levels.is_empty()).then(|| args.spp_levels.clone()))
         .guide_drop(args.guide_drop)
