@@ -100,19 +100,20 @@ pub fn validation_report(
         let color = input.color;
         let guide_only = DenoiseInput::new(color, &v.guide);
         let ablation = DenoiseInput::new(color, color);
+        let denoised = model.denoise(&input)?;
+        let stem = Path::new(&v.record.file).file_stem().and_then(|s| s.to_str()).unwrap_or_default().to_string();
+        if let Some(dir) = save {
+            let mut layers = rtd_image::Layers::new(color.width, color.height);
+            layers.push_rgb("", &denoised);
+            rtd_image::write_exr(&dir.join(format!("{stem}.exr")), &layers)?;
+        }
         let mut methods: Vec<(String, HdrImage)> = vec![
             (METHODS[0].into(), color.clone()),
-            (METHODS[1].into(), model.denoise(&input)?),
+            (METHODS[1].into(), denoised),
             (METHODS[2].into(), model.denoise(&guide_only)?),
             (METHODS[3].into(), model.denoise(&ablation)?),
             (METHODS[4].into(), filter.filter(&input)?),
         ];
-        let stem = Path::new(&v.record.file).file_stem().and_then(|s| s.to_str()).unwrap_or_default().to_string();
-        if let Some(dir) = save {
-            let mut layers = rtd_image::Layers::new(color.width, color.height);
-            layers.push_rgb("", &methods[1].1);
-            rtd_image::write_exr(&dir.join(format!("{stem}.exr")), &layers)?;
-        }
         for (name, dir) in external {
             let path = dir.join(format!("{stem}.exr"));
             let layers = rtd_image::read_exr(&path)?;
