@@ -184,3 +184,71 @@ fn one_pixel_and_odd_sizes_work() {
         assert!(out.is_finite());
     }
 }
+
+/// Self-ensemble passes read the transformed image in place: each symmetry's output is the
+/// network's output on an explicitly transformed copy, mapped back, bit for bit (tiled, on a
+/// size that is neither square nor aligned).
+#[test]
+fn each_ensemble_pass_equals_the_network_on_a_transformed_copy() {
+    use rtd::denoise::infer::Dihedral;
+    let m = model().tile(40);
+    let (w, h) = (70usize, 45usize);
+    let c = rtd::denoise::INPUT_CHANNELS;
+    let planes: Vec<f32> = (0..c * w * h).map(|i| 0.2 + 0.5 * ((i * 7919 % 101) as f32 / 101.0)).collect();
+    let mut sources = vec![];
+    for t in Dihedral::ORDER {
+        let (tw, th) = t.size(w, h);
+        let source: Vec<usize> = (0..th).flat_map(|y| (0..tw).map(move |x| t.source(x, y, w, h))).collect();
+        let mut seen = vec![false; w * h];
+        source.iter().for_each(|&i| seen[i] = true);
+        assert!(seen.iter().all(|s| *s), "{t:?} is not a permutation of the pixels");
+        let copy: Vec<f32> =
+            (0..c).flat_map(|ch| source.iter().map(|&i| planes[ch * w * h + i]).collect::<Vec<_>>()).collect();
+        let direct = m.run_planes(&copy, tw, th);
+        let mapped = m.run_planes_as(&planes, w, h, t);
+        for ch in 0..3 {
+            for (p, &i) in source.iter().enumerate() {
+                assert_eq!(mapped[ch * w * h + i], direct[ch * w * h + p], "{t:?}, channel {ch}, pixel {p}");
+            }
+        }
+        sources.push(source);
+    }
+    sources.sort();
+    sources.dedup();
+    assert_eq!(sources.len(), 8, "the eight passes are not the eight symmetries");
+}
+
+/// The full eight-pass ensemble commutes with the symmetries: denoising a transposed (or
+/// mirrored) render gives the transposed (mirrored) result of denoising the render, up to the
+/// order of the sum. A single pass does not, so the test can tell them apart.
+#[test]
+fn the_eight_pass_ensemble_is_equivariant_and_one_pass_is_not() {
+    use rtd::denoise::infer::Dihedral;
+    // Both sides multiples of the network's alignment, so no side gets extra padding.
+    let (color, g) = cornell_inputs(48, 32);
+    let (w, h) = (48usize, 32usize);
+    for t in [Dihedral::ORDER[1], Dihedral::ORDER[4]] {
+        let (tw, th) = t.size(w, h);
+        let map = |x: usize, y: usize| t.source(x, y, w, h);
+        let image = |img: &HdrImage| {
+            let px = (0..th).flat_map(|y| (0..tw).map(move |x| (x, y))).map(|(x, y)| img.pixels[map(x, y)]).collect();
+            HdrImage::from_pixels(tw as u32, th as u32, px)
+        };
+        let plane = |v: &[f32]| (0..th).flat_map(|y| (0..tw).map(move |x| (x, y))).map(|(x, y)| v[map(x, y)]).collect();
+        let (tc, tg, ta, tn) = (image(&color), image(&g.guide), image(&g.albedo), image(&g.normal));
+        let (tao, tdepth): (Vec<f32>, Vec<f32>) = (plane(&g.ao), plane(&g.depth));
+        let moved = DenoiseInput::new(&tc, &tg).albedo_normal(&ta, &tn).ao_depth(&tao, &tdepth);
+        let worst = |passes: usize| {
+            let a = image(&model().passes(passes).denoise(&full_input(&color, &g)).unwrap());
+            let b = model().passes(passes).denoise(&moved).unwrap();
+            a.pixels
+                .iter()
+                .zip(&b.pixels)
+                .map(|(x, y)| ((*x - *y).abs() / (x.abs().max(y.abs()) + Vec3::splat(1e-3))).max_element())
+                .fold(0.0, f32::max)
+        };
+        let (eight, one) = (worst(8), worst(1));
+        assert!(eight < 1e-5, "{t:?}: eight passes differ by {eight}");
+        assert!(one > 1e-3, "{t:?}: one pass is already equivariant ({one}), the test proves nothing");
+    }
+}

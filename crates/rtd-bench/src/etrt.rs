@@ -77,6 +77,8 @@ pub struct EtrtReport {
     pub denoise_s: f64,
     /// The denoiser model.
     pub denoise_model: String,
+    /// The denoiser's self-ensemble passes.
+    pub denoise_passes: usize,
     /// noisy, rtd denoised, ETRT, ablation (noisy as guide), guided filter.
     pub images: Vec<Scored>,
     /// Plain path tracing's error over time: (seconds, spp, relMSE, PSNR).
@@ -293,6 +295,7 @@ pub fn run_etrt_on(
         guide_s: guide.seconds,
         denoise_s,
         denoise_model: denoiser.name().to_string(),
+        denoise_passes: denoiser.ensemble_passes(),
         images,
         curve,
         time_to_quality_s,

@@ -51,6 +51,8 @@ pub struct SpeedReport {
     pub guide_s_per_mpixel: Spread,
     /// Denoiser seconds per megapixel.
     pub denoise_s_per_mpixel: Spread,
+    /// The denoiser's self-ensemble passes.
+    pub denoise_passes: usize,
 }
 
 /// Measures `runs` times each: an `spp` render, the guide pass and the denoiser.
@@ -96,6 +98,7 @@ pub fn run_speed(
         mrays_per_s: Spread::of(rays),
         guide_s_per_mpixel: Spread::of(guide_t),
         denoise_s_per_mpixel: Spread::of(den_t),
+        denoise_passes: denoiser.ensemble_passes(),
     })
 }
 
@@ -113,7 +116,14 @@ impl SpeedReport {
             row("render M paths/s", &self.mpaths_per_s),
             row("render M rays/s", &self.mrays_per_s),
             row("guide s / Mpixel", &self.guide_s_per_mpixel),
-            row("denoise s / Mpixel", &self.denoise_s_per_mpixel)
+            row(
+                &format!(
+                    "denoise s / Mpixel ({} pass{})",
+                    self.denoise_passes,
+                    if self.denoise_passes == 1 { "" } else { "es" }
+                ),
+                &self.denoise_s_per_mpixel
+            )
         )
     }
 }

@@ -36,8 +36,63 @@ pub struct Denoiser {
     device: Device,
     name: String,
     tile: usize,
+    /// Self-ensemble passes (1 to 8): see [`Denoiser::passes`].
+    passes: usize,
     /// Feature buffers kept between calls (taken with `try_lock`; a concurrent call uses its own).
     scratch: std::sync::Mutex<Scratch>,
+}
+
+/// Most self-ensemble passes: one per symmetry of the square.
+pub const MAX_PASSES: usize = 8;
+
+/// A symmetry of the pixel grid (a transpose then flips), as training's augmentation applies
+/// them: pixel (x, y) of the transformed image is pixel [`Dihedral::source`] of the original.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dihedral {
+    /// Swap x and y.
+    pub transpose: bool,
+    /// Mirror x (after the transpose).
+    pub flip_x: bool,
+    /// Mirror y (after the transpose).
+    pub flip_y: bool,
+}
+
+impl Dihedral {
+    /// The eight symmetries in the order self-ensemble passes use them: identity first, then
+    /// those that move pixels the most differently from the ones already used.
+    pub const ORDER: [Dihedral; MAX_PASSES] = {
+        const fn d(transpose: bool, flip_x: bool, flip_y: bool) -> Dihedral {
+            Dihedral { transpose, flip_x, flip_y }
+        }
+        [
+            d(false, false, false),
+            d(true, false, false),
+            d(false, true, true),
+            d(true, true, true),
+            d(false, true, false),
+            d(false, false, true),
+            d(true, true, false),
+            d(true, false, true),
+        ]
+    };
+
+    /// Width and height of a `w`×`h` image after the transform.
+    pub fn size(self, w: usize, h: usize) -> (usize, usize) {
+        if self.transpose {
+            (h, w)
+        } else {
+            (w, h)
+        }
+    }
+
+    /// Index (y × w + x) in the original `w`×`h` image of pixel (x, y) of the transformed one.
+    pub fn source(self, x: usize, y: usize, w: usize, h: usize) -> usize {
+        let (tw, th) = self.size(w, h);
+        // Flips act on the transformed axes, then the transpose maps back.
+        let (x, y) = (if self.flip_x { tw - 1 - x } else { x }, if self.flip_y { th - 1 - y } else { y });
+        let (u, v) = if self.transpose { (y, x) } else { (x, y) };
+        v * w + u
+    }
 }
 
 impl Denoiser {
@@ -97,6 +152,7 @@ impl Denoiser {
             device,
             name: name.to_string(),
             tile: 512,
+            passes: 1,
             scratch: Default::default(),
         }
     }
@@ -105,6 +161,15 @@ impl Denoiser {
     pub fn tile(mut self, tile: usize) -> Self {
         let a = self.config.alignment();
         self.tile = tile.max(1).div_ceil(a) * a;
+        self
+    }
+
+    /// Self-ensemble: runs the network on the image under the first `n` (1 to [`MAX_PASSES`])
+    /// symmetries of [`Dihedral::ORDER`] and averages the decoded outputs. Each pass costs a
+    /// whole run; 1 (the default) is the network alone. `rtd bench validation --passes` measures
+    /// the trade.
+    pub fn passes(mut self, n: usize) -> Self {
+        self.passes = n.clamp(1, MAX_PASSES);
         self
     }
 
@@ -118,6 +183,11 @@ impl Denoiser {
     /// The model's name (path or `builtin:…`).
     pub fn name(&self) -> &str {
         &self.name
+    }
+
+    /// Self-ensemble passes per call (1: the network alone).
+    pub fn ensemble_passes(&self) -> usize {
+        self.passes
     }
 
     /// The model's config.
@@ -140,12 +210,19 @@ impl Denoiser {
         let encoding = self.config.encoding();
         let exposure = encoding.exposure(input.color);
         let planes = encode_planes(input, exposure, encoding)?;
-        let out = self.run_planes(&planes, w as usize, h as usize);
         let n = (w * h) as usize;
-        // Decode, then multiply the albedo back in if the colour was demodulated.
+        // Mean over the passes of the decoded output (one pass: the decoded output itself).
+        let mut sum = vec![0.0f32; 3 * n];
+        for t in &Dihedral::ORDER[..self.passes] {
+            let out = self.run_planes_as(&planes, w as usize, h as usize, *t);
+            for (s, o) in sum.iter_mut().zip(&out) {
+                *s += decode_color(*o, exposure);
+            }
+        }
+        let passes = self.passes as f32;
+        // Multiply the albedo back in if the colour was demodulated.
         let demod = demod_albedo(input, encoding.demodulate);
-        let channel =
-            |k: usize, i: usize| (decode_color(out[k * n + i], exposure) * demod_factor(demod, i, k)).min(f32::MAX);
+        let channel = |k: usize, i: usize| (sum[k * n + i] / passes * demod_factor(demod, i, k)).min(f32::MAX);
         let pixels = (0..n).map(|i| Vec3::new(channel(0, i), channel(1, i), channel(2, i))).collect();
         Ok(HdrImage::from_pixels(w, h, pixels))
     }
@@ -166,6 +243,14 @@ impl Denoiser {
     /// that extended image, and its windows keep the extended image's alignment, so tiled and
     /// untiled runs compute the same values.
     pub fn run_planes(&self, planes: &[f32], w: usize, h: usize) -> Vec<f32> {
+        self.run_planes_as(planes, w, h, Dihedral::ORDER[0])
+    }
+
+    /// [`Denoiser::run_planes`] on the image transformed by `t` (read in place, not copied),
+    /// with the output mapped back to the original's pixels.
+    pub fn run_planes_as(&self, planes: &[f32], w: usize, h: usize, t: Dihedral) -> Vec<f32> {
+        let (ow, oh) = (w, h);
+        let (w, h) = t.size(w, h);
         let a = self.config.alignment();
         let (m, p) = (self.margin() as i64, self.edge_pad() as i64);
         let (wp, hp) = (w.div_ceil(a) * a, h.div_ceil(a) * a);
@@ -184,13 +269,19 @@ impl Denoiser {
                 let (x0, y0) = ((tx as i64 - m).max(-p), (ty as i64 - m).max(-p));
                 let (x1, y1) = (((tx + tw) as i64 + m).min(wp as i64 + p), ((ty + th) as i64 + m).min(hp as i64 + p));
                 let (iw, ih) = ((x1 - x0) as usize, (y1 - y0) as usize);
-                let tile = self.run_tile(planes, w, h, x0, y0, iw, ih, scratch);
-                // Keep the tile's interior.
+                let tile = self.run_tile(planes, (ow, oh), t, x0, y0, iw, ih, scratch);
+                // Keep the tile's interior, each pixel where it came from.
                 let (ox, oy) = ((tx as i64 - x0) as usize, (ty as i64 - y0) as usize);
                 for c in 0..3 {
                     for y in ty..(ty + th).min(h) {
                         let src = &tile[c * iw * ih + (y - ty + oy) * iw + ox..][..(tx + tw).min(w) - tx];
-                        out[c * w * h + y * w + tx..][..src.len()].copy_from_slice(src);
+                        if t == Dihedral::ORDER[0] {
+                            out[c * w * h + y * w + tx..][..src.len()].copy_from_slice(src);
+                        } else {
+                            for (i, v) in src.iter().enumerate() {
+                                out[c * w * h + t.source(tx + i, y, ow, oh)] = *v;
+                            }
+                        }
                     }
                 }
             }
@@ -198,24 +289,27 @@ impl Denoiser {
         out
     }
 
-    /// One window of `tw`×`th` pixels whose top-left is (x0, y0) in image coordinates (pixels
-    /// outside the image repeat the nearest edge pixel). Returns 3 × th × tw encoded colour.
+    /// One window of `tw`×`th` pixels whose top-left is (x0, y0) in the coordinates of the
+    /// `size` image transformed by `t` (pixels outside it repeat the nearest edge pixel).
+    /// Returns 3 × th × tw encoded colour.
     #[allow(clippy::too_many_arguments)]
     fn run_tile(
         &self,
         planes: &[f32],
-        w: usize,
-        h: usize,
+        size: (usize, usize),
+        t: Dihedral,
         x0: i64,
         y0: i64,
         tw: usize,
         th: usize,
         scratch: &mut Scratch,
     ) -> Vec<f32> {
+        let (ow, oh) = size;
+        let (w, h) = t.size(ow, oh);
         let src = |x: usize, y: usize| {
             let sx = (x0 + x as i64).clamp(0, w as i64 - 1) as usize;
             let sy = (y0 + y as i64).clamp(0, h as i64 - 1) as usize;
-            sy * w + sx
+            t.source(sx, sy, ow, oh)
         };
         let n = tw * th;
         if self.use_burn {

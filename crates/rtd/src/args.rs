@@ -28,6 +28,19 @@ pub enum Command {
     Bench(BenchArgs),
     /// Train the denoiser on a `rtd datagen` dataset (resumable; --quick for a smoke run).
     Train(TrainArgs),
+    /// Average the weights of trained models of one network (a model soup) into one model.
+    Average(AverageArgs),
+}
+
+/// `rtd average` options.
+#[derive(Debug, Clone, Args)]
+pub struct AverageArgs {
+    /// Models to average (.bpk, each with its .json config beside it; at least two, one network).
+    #[arg(required = true, num_args = 2..)]
+    pub models: Vec<PathBuf>,
+    /// The averaged model (.bpk; its config is written beside it as .json).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// Which network to train.
@@ -133,6 +146,10 @@ pub struct DenoiseArgs {
     /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
+    /// the input (1 to 8; each costs a whole run).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub ensemble: u32,
     /// Output: .exr or .png/.jpg.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -189,6 +206,10 @@ pub struct SpeedArgs {
     /// Denoiser model instead of the built-in one.
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
+    /// the input (1 to 8; each costs a whole run).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub ensemble: u32,
     /// Write the report as JSON here.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -232,6 +253,10 @@ pub struct PipelineArgs {
     /// Denoiser model instead of the built-in one.
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
+    /// the input (1 to 8; each costs a whole run).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub ensemble: u32,
 }
 
 /// `rtd bench etrt` options.
@@ -265,6 +290,10 @@ pub struct ValidationArgs {
     /// Denoiser model instead of the built-in one.
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
+    /// the input (1 to 8; each costs a whole run).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub ensemble: u32,
     /// Noisy sample count to evaluate (one of the dataset's levels).
     #[arg(long, default_value_t = 8)]
     pub spp: u32,
@@ -418,6 +447,10 @@ pub struct RenderArgs {
     /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
     #[arg(long, requires = "denoise")]
     pub model: Option<PathBuf>,
+    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
+    /// the input (1 to 8; each costs a whole run).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8), requires = "denoise")]
+    pub ensemble: u32,
     /// Write a JSON report of timings and counters here.
     #[arg(long)]
     pub report: Option<PathBuf>,

@@ -28,18 +28,22 @@ pub struct DenoiseReport {
     pub denoise_s: f64,
     /// The model used (path or builtin:…).
     pub denoise_model: String,
+    /// Self-ensemble passes (1: the network alone).
+    pub denoise_passes: usize,
     /// Which inputs were given.
     pub inputs: Vec<String>,
     /// Input colour values that were NaN or infinite (set to 0 or clamped).
     pub nonfinite_input_values: usize,
 }
 
-/// Loads the model named on the command line, or the built-in one.
-pub fn load_model(path: Option<&PathBuf>) -> anyhow::Result<Denoiser> {
-    Ok(match path {
+/// Loads the model named on the command line, or the built-in one, set to run `passes`
+/// self-ensemble passes.
+pub fn load_model(path: Option<&PathBuf>, passes: u32) -> anyhow::Result<Denoiser> {
+    let model = match path {
         Some(p) => Denoiser::load(p)?,
         None => Denoiser::builtin()?,
-    })
+    };
+    Ok(model.passes(passes as usize))
 }
 
 /// Reads an image layer: from an EXR the `prefix.*` layer if present, else `R,G,B` (or
@@ -118,7 +122,7 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseReport> {
     if args.guide.is_none() && args.albedo.is_none() {
         bail!("rtd denoise needs --guide (material colour × AO) or --albedo with --normal");
     }
-    let model = load_model(args.model.as_ref())?;
+    let model = load_model(args.model.as_ref(), args.ensemble)?;
     let color = read_layer(&args.color, "", false)?;
     check_size(&args.color, &color)?;
     let mut inputs = vec!["color".to_string()];
@@ -164,6 +168,7 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseReport> {
         height: out.height,
         denoise_s,
         denoise_model: model.name().to_string(),
+        denoise_passes: model.ensemble_passes(),
         inputs,
         nonfinite_input_values: count_nonfinite(&color),
     };

@@ -67,6 +67,9 @@ pub struct RenderReport {
     pub denoise_s: Option<f64>,
     /// The denoiser model used (with --denoise).
     pub denoise_model: Option<String>,
+    /// The denoiser's self-ensemble passes (with --denoise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub denoise_passes: Option<usize>,
 }
 
 /// Fails early, before any rendering, if `path` cannot be written as an image.
@@ -175,7 +178,8 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         check_report_path(r)?;
     }
     // Load the model first: a bad model should fail before minutes of rendering.
-    let model = if args.denoise { Some(crate::denoise_command::load_model(args.model.as_ref())?) } else { None };
+    let model =
+        if args.denoise { Some(crate::denoise_command::load_model(args.model.as_ref(), args.ensemble)?) } else { None };
     let PreparedView { scene: prepared, camera, load_s } = prepare_view(view, args.env.as_deref())?;
     if prepared.lights.is_empty() {
         eprintln!("rtd: warning: {}: scene has no lights and no --env; the image will be black", view.scene.display());
@@ -233,6 +237,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     report.guide_s = guide.as_ref().map(|g| g.seconds);
     report.denoise_s = denoise_s;
     report.denoise_model = model.as_ref().map(|m| m.name().to_string());
+    report.denoise_passes = model.as_ref().map(|m| m.ensemble_passes());
     crate::print_line(&format!(
         "rendered {} spp at {}x{} in {:.2} s: {:.3} M paths/s, {:.3} M rays/s ({:.1} rays/path), {} non-finite samples{}{}",
         report.spp,
@@ -313,6 +318,7 @@ fn make_report(
         guide_s: None,
         denoise_s: None,
         denoise_model: None,
+        denoise_passes: None,
     }
 }
 
