@@ -2,7 +2,6 @@
 //! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]) and the training loop
 //! ([`train`]).
 
-pub mod average;
 pub mod data;
 pub mod dataset;
 pub mod evaluate;

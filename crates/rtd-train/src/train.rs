@@ -222,7 +222,7 @@ impl RunFiles {
     }
 }
 
-pub(crate) fn save_record(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+fn save_record(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
     rtd_image::write_atomic(path, |w| {
         std::io::Write::write_all(w, bytes).map_err(|e| rtd_image::ImageError::io(path, e))
     })?;

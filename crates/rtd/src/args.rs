@@ -28,19 +28,6 @@ pub enum Command {
     Bench(BenchArgs),
     /// Train the denoiser on a `rtd datagen` dataset (resumable; --quick for a smoke run).
     Train(TrainArgs),
-    /// Average the weights of trained models of one network (a model soup) into one model.
-    Average(AverageArgs),
-}
-
-/// `rtd average` options.
-#[derive(Debug, Clone, Args)]
-pub struct AverageArgs {
-    /// Models to average (.bpk, each with its .json config beside it; at least two, one network).
-    #[arg(required = true, num_args = 2..)]
-    pub models: Vec<PathBuf>,
-    /// The averaged model (.bpk; its config is written beside it as .json).
-    #[arg(short, long)]
-    pub output: PathBuf,
 }
 
 /// Which network to train.

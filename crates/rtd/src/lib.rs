@@ -41,7 +41,6 @@ where
         args::Command::Denoise(a) => denoise_command::denoise(&a).map(|_| ()),
         args::Command::Bench(a) => bench_command::bench(&a),
         args::Command::Train(a) => train_command::train(&a).map(|_| ()),
-        args::Command::Average(a) => train_command::average(&a),
     }
 }
 

@@ -1,10 +1,10 @@
-//! `rtd datagen`, `rtd train` and `rtd average`: thin wrappers over `rtd_train`.
+//! `rtd datagen` and `rtd train`: thin wrappers over `rtd_train`.
 
 use rtd_denoise::DenoiserConfig;
 use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions, Split};
 use rtd_train::train::{GrowLevel, TrainOptions, TrainState};
 
-use crate::args::{AverageArgs, DatagenArgs, SplitArg, TrainArgs, VariantArg};
+use crate::args::{DatagenArgs, SplitArg, TrainArgs, VariantArg};
 use crate::progress::TaskBar;
 
 /// Runs `rtd datagen`.
@@ -113,16 +113,4 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         );
     }
     Ok(state)
-}
-
-/// Runs `rtd average`.
-pub fn average(args: &AverageArgs) -> anyhow::Result<()> {
-    let config = rtd_train::average::average_models(&args.models, &args.output)?;
-    eprintln!(
-        "{}: the mean of {} models' weights ({:.1}k MAC/px)",
-        args.output.display(),
-        args.models.len(),
-        config.macs_per_pixel() / 1000.0
-    );
-    Ok(())
 }
