@@ -171,3 +171,41 @@ fn denoise_bad_inputs_fail_cleanly_without_output() {
     assert!(!out.exists(), "no output may be written");
     assert!(std::fs::read_dir(d).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".tmp")));
 }
+
+/// `--ensemble N` runs the library's N-pass self-ensemble (the same bytes), says so in the
+/// report, differs from one pass, and refuses counts outside 1–8 in one line without output.
+#[test]
+fn denoise_ensemble_is_the_librarys_and_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let noisy = noisy_exr(dir.path(), 32, 24);
+    let run = |passes: &str, out: &Path, report: &Path| {
+        let o = rtd(&[
+            "denoise",
+            "--color",
+            s(&noisy),
+            "--guide",
+            s(&noisy),
+            "--ensemble",
+            passes,
+            "-o",
+            s(out),
+            "--report",
+            s(report),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
+        assert_eq!(r["denoise_passes"].as_u64(), Some(passes.parse().unwrap()));
+        rtd::image::read_exr(out).unwrap().rgb("").unwrap()
+    };
+    let four = run("4", &dir.path().join("o4.exr"), &dir.path().join("r4.json"));
+    let one = run("1", &dir.path().join("o1.exr"), &dir.path().join("r1.json"));
+    let img = rtd::image::read_exr(&noisy).unwrap();
+    let (color, guide) = (img.rgb("").unwrap(), img.rgb("guide").unwrap());
+    let input = rtd::denoise::DenoiseInput::new(&color, &guide);
+    let library = rtd::denoise::Denoiser::builtin().unwrap().passes(4).denoise(&input).unwrap();
+    assert_eq!(four.pixels, library.pixels);
+    assert_ne!(four.pixels, one.pixels);
+    let out = dir.path().join("o9.exr");
+    assert_fails(&rtd(&["denoise", "--color", s(&noisy), "--guide", s(&noisy), "--ensemble", "9", "-o", s(&out)]), "9");
+    assert!(!out.exists());
+}
