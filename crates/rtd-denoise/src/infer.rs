@@ -45,8 +45,9 @@ pub struct Denoiser {
 /// Most self-ensemble passes: one per symmetry of the square.
 pub const MAX_PASSES: usize = 8;
 
-/// A symmetry of the pixel grid (a transpose then flips), as training's augmentation applies
-/// them: pixel (x, y) of the transformed image is pixel [`Dihedral::source`] of the original.
+/// One of the eight symmetries of the pixel grid that training's augmentation draws crops under
+/// (a transpose, then mirrors of the transposed axes): pixel (x, y) of the transformed image is
+/// pixel [`Dihedral::source`] of the original.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Dihedral {
     /// Swap x and y.
@@ -58,8 +59,8 @@ pub struct Dihedral {
 }
 
 impl Dihedral {
-    /// The eight symmetries in the order self-ensemble passes use them: identity first, then
-    /// those that move pixels the most differently from the ones already used.
+    /// The eight symmetries in the order self-ensemble passes use them: identity, transpose,
+    /// half turn, anti-transpose, then the two mirrors and the two quarter turns.
     pub const ORDER: [Dihedral; MAX_PASSES] = {
         const fn d(transpose: bool, flip_x: bool, flip_y: bool) -> Dihedral {
             Dihedral { transpose, flip_x, flip_y }
@@ -166,8 +167,8 @@ impl Denoiser {
 
     /// Self-ensemble: runs the network on the image under the first `n` (1 to [`MAX_PASSES`])
     /// symmetries of [`Dihedral::ORDER`] and averages the decoded outputs. Each pass costs a
-    /// whole run; 1 (the default) is the network alone. `rtd bench validation --passes` measures
-    /// the trade.
+    /// whole run; 1 (the default) is the network alone. `rtd bench validation --ensemble` and
+    /// `rtd bench speed --ensemble` measure the trade.
     pub fn passes(mut self, n: usize) -> Self {
         self.passes = n.clamp(1, MAX_PASSES);
         self
