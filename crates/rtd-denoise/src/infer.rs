@@ -276,12 +276,8 @@ impl Denoiser {
                 for c in 0..3 {
                     for y in ty..(ty + th).min(h) {
                         let src = &tile[c * iw * ih + (y - ty + oy) * iw + ox..][..(tx + tw).min(w) - tx];
-                        if t == Dihedral::ORDER[0] {
-                            out[c * w * h + y * w + tx..][..src.len()].copy_from_slice(src);
-                        } else {
-                            for (i, v) in src.iter().enumerate() {
-                                out[c * w * h + t.source(tx + i, y, ow, oh)] = *v;
-                            }
+                        for (i, v) in src.iter().enumerate() {
+                            out[c * w * h + t.source(tx + i, y, ow, oh)] = *v;
                         }
                     }
                 }

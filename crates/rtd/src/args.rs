@@ -4,6 +4,18 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+/// The denoiser a command runs: `--model` and `--ensemble`.
+#[derive(Debug, Clone, Args)]
+pub struct DenoiserArgs {
+    /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
+    /// the input (1 to 8; each costs a whole run).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=rtd_denoise::infer::MAX_PASSES as i64))]
+    pub ensemble: u32,
+}
+
 /// rtd: a Monte Carlo path tracer with a built-in learned denoiser.
 #[derive(Debug, Parser)]
 #[command(name = "rtd", version, about)]
@@ -130,13 +142,9 @@ pub struct DenoiseArgs {
     /// World- or camera-space normals (EXR `normal.X/Y/Z` or `R,G,B`; PNG/JPEG as n·0.5+0.5).
     #[arg(long, requires = "albedo")]
     pub normal: Option<PathBuf>,
-    /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
-    #[arg(long)]
-    pub model: Option<PathBuf>,
-    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
-    /// the input (1 to 8; each costs a whole run).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
-    pub ensemble: u32,
+    /// The denoiser: model and self-ensemble passes.
+    #[command(flatten)]
+    pub denoiser: DenoiserArgs,
     /// Output: .exr or .png/.jpg.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -190,13 +198,9 @@ pub struct SpeedArgs {
     /// Runs per figure.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
-    /// Denoiser model instead of the built-in one.
-    #[arg(long)]
-    pub model: Option<PathBuf>,
-    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
-    /// the input (1 to 8; each costs a whole run).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
-    pub ensemble: u32,
+    /// The denoiser: model and self-ensemble passes.
+    #[command(flatten)]
+    pub denoiser: DenoiserArgs,
     /// Write the report as JSON here.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -237,13 +241,9 @@ pub struct PipelineArgs {
     /// Image height.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
     pub height: u32,
-    /// Denoiser model instead of the built-in one.
-    #[arg(long)]
-    pub model: Option<PathBuf>,
-    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
-    /// the input (1 to 8; each costs a whole run).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
-    pub ensemble: u32,
+    /// The denoiser: model and self-ensemble passes.
+    #[command(flatten)]
+    pub denoiser: DenoiserArgs,
 }
 
 /// `rtd bench etrt` options.
@@ -274,13 +274,9 @@ pub struct ValidationArgs {
     /// Dataset directory made by `rtd datagen`.
     #[arg(long)]
     pub data: PathBuf,
-    /// Denoiser model instead of the built-in one.
-    #[arg(long)]
-    pub model: Option<PathBuf>,
-    /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
-    /// the input (1 to 8; each costs a whole run).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
-    pub ensemble: u32,
+    /// The denoiser: model and self-ensemble passes.
+    #[command(flatten)]
+    pub denoiser: DenoiserArgs,
     /// Noisy sample count to evaluate (one of the dataset's levels).
     #[arg(long, default_value_t = 8)]
     pub spp: u32,
@@ -436,11 +432,18 @@ pub struct RenderArgs {
     pub model: Option<PathBuf>,
     /// Self-ensemble: average the denoiser's outputs over this many flips/transposes of
     /// the input (1 to 8; each costs a whole run).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8), requires = "denoise")]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=rtd_denoise::infer::MAX_PASSES as i64), requires = "denoise")]
     pub ensemble: u32,
     /// Write a JSON report of timings and counters here.
     #[arg(long)]
     pub report: Option<PathBuf>,
+}
+
+impl RenderArgs {
+    /// The `--model` and `--ensemble` of `--denoise`, as the other commands take them.
+    pub fn denoiser(&self) -> DenoiserArgs {
+        DenoiserArgs { model: self.model.clone(), ensemble: self.ensemble }
+    }
 }
 
 /// Arguments of `rtd guide`.

@@ -18,7 +18,7 @@ pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
 }
 
 fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
-    let model = load_model(args.model.as_ref(), args.ensemble)?;
+    let model = load_model(&args.denoiser)?;
     let bar = TaskBar::new(args.quiet);
     let report =
         rtd_bench::speed::run_speed(&args.scene, &model, args.width, args.height, args.spp, args.runs as usize, &bar)?;
@@ -31,7 +31,7 @@ fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
 }
 
 fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
-    let model = load_model(args.pipeline.model.as_ref(), args.pipeline.ensemble)?;
+    let model = load_model(&args.pipeline.denoiser)?;
     let mut scenes = vec![];
     let inputs = if args.scenes.is_empty() { vec![std::path::PathBuf::from("scenes")] } else { args.scenes.clone() };
     for p in inputs {
@@ -73,7 +73,7 @@ fn etrt_options(p: &PipelineArgs, seed: u64) -> rtd_bench::EtrtOptions {
 }
 
 fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
-    let model = load_model(args.pipeline.model.as_ref(), args.pipeline.ensemble)?;
+    let model = load_model(&args.pipeline.denoiser)?;
     let options = etrt_options(&args.pipeline, args.seed);
     let bar = TaskBar::new(args.quiet);
     let cache = args.output.join("cache");
@@ -85,7 +85,7 @@ fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
 }
 
 fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
-    let model = load_model(args.model.as_ref(), args.ensemble)?;
+    let model = load_model(&args.denoiser)?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     if let Some(dir) = &args.save_images {

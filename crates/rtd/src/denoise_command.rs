@@ -1,6 +1,6 @@
 //! `rtd denoise`: the learned denoiser on images from any renderer.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context};
@@ -10,7 +10,7 @@ use serde::Serialize;
 use rtd_denoise::{DenoiseInput, Denoiser, MAX_SIDE};
 use rtd_image::{HdrImage, ImageFormat, Layers, Tonemap};
 
-use crate::args::DenoiseArgs;
+use crate::args::{DenoiseArgs, DenoiserArgs};
 use crate::render_command::{check_output, check_report_path, write_json};
 
 /// What `rtd denoise --report` writes.
@@ -36,14 +36,14 @@ pub struct DenoiseReport {
     pub nonfinite_input_values: usize,
 }
 
-/// Loads the model named on the command line, or the built-in one, set to run `passes`
-/// self-ensemble passes.
-pub fn load_model(path: Option<&PathBuf>, passes: u32) -> anyhow::Result<Denoiser> {
-    let model = match path {
+/// Loads the model named on the command line, or the built-in one, set to run its
+/// `--ensemble` passes.
+pub fn load_model(args: &DenoiserArgs) -> anyhow::Result<Denoiser> {
+    let model = match &args.model {
         Some(p) => Denoiser::load(p)?,
         None => Denoiser::builtin()?,
     };
-    Ok(model.passes(passes as usize))
+    Ok(model.passes(args.ensemble as usize))
 }
 
 /// Reads an image layer: from an EXR the `prefix.*` layer if present, else `R,G,B` (or
@@ -122,7 +122,7 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseReport> {
     if args.guide.is_none() && args.albedo.is_none() {
         bail!("rtd denoise needs --guide (material colour × AO) or --albedo with --normal");
     }
-    let model = load_model(args.model.as_ref(), args.ensemble)?;
+    let model = load_model(&args.denoiser)?;
     let color = read_layer(&args.color, "", false)?;
     check_size(&args.color, &color)?;
     let mut inputs = vec!["color".to_string()];

@@ -178,8 +178,7 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         check_report_path(r)?;
     }
     // Load the model first: a bad model should fail before minutes of rendering.
-    let model =
-        if args.denoise { Some(crate::denoise_command::load_model(args.model.as_ref(), args.ensemble)?) } else { None };
+    let model = if args.denoise { Some(crate::denoise_command::load_model(&args.denoiser())?) } else { None };
     let PreparedView { scene: prepared, camera, load_s } = prepare_view(view, args.env.as_deref())?;
     if prepared.lights.is_empty() {
         eprintln!("rtd: warning: {}: scene has no lights and no --env; the image will be black", view.scene.display());
