@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use rtd_image::HdrImage;
 
 use crate::encode::{decode_color, demod_albedo, demod_factor, encode_planes, DenoiseInput};
-use crate::fast::{FastNet, Map, Scratch};
+use crate::fast::{FastNet, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::{DenoiseError, INPUT_CHANNELS};
 
@@ -308,37 +308,21 @@ impl Denoiser {
             let sy = (y0 + y as i64).clamp(0, h as i64 - 1) as usize;
             t.source(sx, sy, ow, oh)
         };
-        let n = tw * th;
+        // The window's input planes (C × th × tw), which both paths read.
+        let mut x = scratch.map(tw, th, INPUT_CHANNELS);
+        x.data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
+            let (c, y) = (row / th, row % th);
+            for (x, d) in dst.iter_mut().enumerate() {
+                *d = planes[c * w * h + src(x, y)];
+            }
+        });
         if self.use_burn {
-            let mut data = vec![0.0f32; INPUT_CHANNELS * n];
-            data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
-                let (c, y) = (row / th, row % th);
-                for (x, d) in dst.iter_mut().enumerate() {
-                    *d = planes[c * w * h + src(x, y)];
-                }
-            });
-            let input = Tensor::<4>::from_data(TensorData::new(data, [1, INPUT_CHANNELS, th, tw]), &self.device);
+            let input = Tensor::<4>::from_data(TensorData::new(x.data, [1, INPUT_CHANNELS, th, tw]), &self.device);
             let y = self.net.forward(input); // [1, 3, th, tw]
             return y.into_data().try_into_vec::<f32>().expect("the network outputs f32");
         }
-        // The fast path works on HWC maps.
-        let mut hwc = vec![0.0f32; n * INPUT_CHANNELS];
-        hwc.par_chunks_mut(tw * INPUT_CHANNELS).enumerate().for_each(|(y, dst)| {
-            for (x, px) in dst.chunks_mut(INPUT_CHANNELS).enumerate() {
-                let i = src(x, y);
-                for (c, d) in px.iter_mut().enumerate() {
-                    *d = planes[c * w * h + i];
-                }
-            }
-        });
-        let y = self.fast.forward(&Map { w: tw, h: th, c: INPUT_CHANNELS, data: hwc }, scratch);
-        let mut out = vec![0.0f32; 3 * n];
-        out.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
-            for (p, v) in plane.iter_mut().enumerate() {
-                *v = y.data[p * 3 + c];
-            }
-        });
-        scratch.recycle(y);
-        out
+        let y = self.fast.forward(&x, scratch);
+        scratch.recycle(x);
+        y.data
     }
 }
