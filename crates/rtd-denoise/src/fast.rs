@@ -146,7 +146,8 @@ impl Conv {
                     (col.as_ptr(), rows)
                 };
                 let base = unsafe { out.get().add(offset * n + p0) };
-                // dst[rows × cout] = lhs[rows × k] · weights[k × cout], both column-major.
+                // dst[rows × cout] = lhs[rows × k] · weights[k × cout]; dst and lhs are column-major
+                // (pixels contiguous, one plane or im2col column apart), the weights row-major.
                 unsafe {
                     gemm(
                         rows,
