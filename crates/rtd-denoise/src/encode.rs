@@ -118,17 +118,30 @@ fn luminance(r: f32, g: f32, b: f32) -> f32 {
     0.2126 * r + 0.7152 * g + 0.0722 * b
 }
 
+/// Pixels per task where a per-pixel pass over an image is split between threads.
+const PIXEL_CHUNK: usize = 16384;
+
 /// Auto-exposure: the scale that maps the log-average luminance of the lit pixels to 0.18
 /// (1 for an all-black image).
 pub fn auto_exposure(color: &HdrImage) -> f32 {
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for p in &color.pixels {
-        let l = luminance(clean(p.x, 0.0, MAX_INPUT), clean(p.y, 0.0, MAX_INPUT), clean(p.z, 0.0, MAX_INPUT));
-        if l > 1e-8 {
-            sum += (l as f64).ln();
-            n += 1;
-        }
-    }
+    // Sum of ln(luminance) over lit pixels, by fixed chunks added in order, so the result does
+    // not depend on the thread count.
+    let partial: Vec<(f64, usize)> = color
+        .pixels
+        .par_chunks(PIXEL_CHUNK)
+        .map(|chunk| {
+            let (mut sum, mut n) = (0.0f64, 0usize);
+            for p in chunk {
+                let l = luminance(clean(p.x, 0.0, MAX_INPUT), clean(p.y, 0.0, MAX_INPUT), clean(p.z, 0.0, MAX_INPUT));
+                if l > 1e-8 {
+                    sum += (l as f64).ln();
+                    n += 1;
+                }
+            }
+            (sum, n)
+        })
+        .collect();
+    let (sum, n) = partial.iter().fold((0.0f64, 0usize), |(s, n), (ps, pn)| (s + ps, n + pn));
     if n == 0 {
         return 1.0;
     }
@@ -171,11 +184,14 @@ pub fn demod_albedo<'a>(input: &DenoiseInput<'a>, demodulate: bool) -> Option<&'
 /// Writes channel `k` of `color`, divided by `albedo` + [`DEMOD_EPS`] if given, encoded, into
 /// `plane` (one value per pixel).
 pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&HdrImage>, k: usize, exposure: f32) {
-    for (i, (v, p)) in plane.iter_mut().zip(&color.pixels).enumerate() {
-        // The transfer of colour ÷ demodulation factor (at least DEMOD_EPS, so finite; not
-        // clamped again, so demodulated HDR keeps its range).
-        *v = transfer(clean(p[k], 0.0, MAX_INPUT) / demod_factor(albedo, i, k), exposure);
-    }
+    plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
+        let i0 = c * PIXEL_CHUNK;
+        for (i, (v, p)) in chunk.iter_mut().zip(&color.pixels[i0..]).enumerate() {
+            // The transfer of colour ÷ demodulation factor (at least DEMOD_EPS, so finite; not
+            // clamped again, so demodulated HDR keeps its range).
+            *v = transfer(clean(p[k], 0.0, MAX_INPUT) / demod_factor(albedo, i0 + i, k), exposure);
+        }
+    });
 }
 
 /// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order. With

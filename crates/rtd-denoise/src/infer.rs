@@ -216,15 +216,13 @@ impl Denoiser {
         let mut sum = vec![0.0f32; 3 * n];
         for t in &Dihedral::ORDER[..self.passes] {
             let out = self.run_planes_as(&planes, w as usize, h as usize, *t);
-            for (s, o) in sum.iter_mut().zip(&out) {
-                *s += decode_color(*o, exposure);
-            }
+            sum.par_iter_mut().zip(out.par_iter()).for_each(|(s, o)| *s += decode_color(*o, exposure));
         }
         let passes = self.passes as f32;
         // Multiply the albedo back in if the colour was demodulated.
         let demod = demod_albedo(input, encoding.demodulate);
         let channel = |k: usize, i: usize| (sum[k * n + i] / passes * demod_factor(demod, i, k)).min(f32::MAX);
-        let pixels = (0..n).map(|i| Vec3::new(channel(0, i), channel(1, i), channel(2, i))).collect();
+        let pixels = (0..n).into_par_iter().map(|i| Vec3::new(channel(0, i), channel(1, i), channel(2, i))).collect();
         Ok(HdrImage::from_pixels(w, h, pixels))
     }
 
