@@ -152,7 +152,7 @@ impl Denoiser {
             config,
             device,
             name: name.to_string(),
-            tile: 512,
+            tile: 768,
             passes: 1,
             scratch: Default::default(),
         }
