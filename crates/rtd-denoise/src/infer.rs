@@ -306,12 +306,19 @@ impl Denoiser {
             let sy = (y0 + y as i64).clamp(0, h as i64 - 1) as usize;
             t.source(sx, sy, ow, oh)
         };
+        // Where each window pixel comes from, found once for all planes.
+        let mut index = vec![0usize; tw * th];
+        index.par_chunks_mut(tw).enumerate().for_each(|(y, row)| {
+            for (x, i) in row.iter_mut().enumerate() {
+                *i = src(x, y);
+            }
+        });
         // The window's input planes (C × th × tw), which both paths read.
         let mut x = scratch.map(tw, th, INPUT_CHANNELS);
         x.data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
-            let (c, y) = (row / th, row % th);
-            for (x, d) in dst.iter_mut().enumerate() {
-                *d = planes[c * w * h + src(x, y)];
+            let (plane, y) = (&planes[row / th * w * h..][..w * h], row % th);
+            for (d, i) in dst.iter_mut().zip(&index[y * tw..][..tw]) {
+                *d = plane[*i];
             }
         });
         if self.use_burn {
