@@ -7,7 +7,7 @@ use std::path::Path;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rtd_denoise::encode::{demod_albedo, encode_color_plane, encode_planes, Encoding};
+use rtd_denoise::encode::{demod_albedo, demod_factor, encode_color_plane, encode_planes, Encoding};
 use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
 use rtd_image::HdrImage;
 
@@ -84,9 +84,25 @@ struct Encoded {
     h: usize,
     planes: Vec<f32>,
     target: Vec<f32>,
+    /// Per channel and pixel, what e^y − 1 of an encoded colour y is multiplied by to give
+    /// linear radiance: demodulation factor ÷ exposure (3 × H × W).
+    scale: Vec<f32>,
+    /// The exposure the view was encoded with.
+    exposure: f32,
     /// For a demodulating model: the colour planes and target without demodulation, used by
     /// crops whose albedo layer is dropped (inference demodulates only when albedo is given).
     plain: Option<(Vec<f32>, Vec<f32>)>,
+}
+
+/// One training batch, channel-major: `n` crops of side `s`.
+pub struct Batch {
+    /// Network inputs, [n, C, s, s].
+    pub inputs: Vec<f32>,
+    /// Encoded reference colour, [n, 3, s, s].
+    pub targets: Vec<f32>,
+    /// Decode scales, [n, 3, s, s]: linear radiance = (e^y − 1) × scale for an encoded colour
+    /// y of the same crop (see [`crate::train::display_loss`]).
+    pub scales: Vec<f32>,
 }
 
 /// Encodes the three channels of `img` (demodulated by `albedo` if given) into 3 × H × W.
@@ -131,7 +147,10 @@ impl CropSampler {
                 let planes = encode_planes(&input, e, encoding)?;
                 let target = encode_rgb(&v.reference, demod_albedo(&input, demodulate), e);
                 let plain = demodulate.then(|| (encode_rgb(input.color, None, e), encode_rgb(&v.reference, None, e)));
-                encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, plain });
+                let n = v.reference.pixels.len();
+                let albedo = demod_albedo(&input, demodulate);
+                let scale = (0..3 * n).map(|j| demod_factor(albedo, j % n, j / n) / e).collect();
+                encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, scale, exposure: e, plain });
             }
         }
         Ok(CropSampler { encoded, crop, drop_probability: DROP_PROBABILITY })
@@ -144,11 +163,12 @@ impl CropSampler {
     }
 
     /// A batch of `n` crops for step `step` (a pure function of seed and step, so a resumed run
-    /// sees the same batches): inputs [n, C, s, s] and targets [n, 3, s, s], channel-major.
-    pub fn batch(&self, seed: u64, step: u64, n: usize) -> (Vec<f32>, Vec<f32>) {
+    /// sees the same batches).
+    pub fn batch(&self, seed: u64, step: u64, n: usize) -> Batch {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ step.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let s = self.crop;
         let (mut xs, mut ys) = (Vec::with_capacity(n * INPUT_CHANNELS * s * s), Vec::with_capacity(n * 3 * s * s));
+        let mut scales = Vec::with_capacity(n * 3 * s * s);
         for _ in 0..n {
             let e = &self.encoded[rng.random_range(0..self.encoded.len())];
             let (x0, y0) = (rng.random_range(0..=e.w - s), rng.random_range(0..=e.h - s));
@@ -197,12 +217,15 @@ impl CropSampler {
             for c in 0..3 {
                 for y in 0..s {
                     for x in 0..s {
-                        ys.push(if black { 0.0 } else { target[perm[c] * n_px + src(x, y)] });
+                        let i = perm[c] * n_px + src(x, y);
+                        ys.push(if black { 0.0 } else { target[i] });
+                        // A crop without albedo is not demodulated, so it decodes by exposure alone.
+                        scales.push(if e.plain.is_some() && drop_an { 1.0 / e.exposure } else { e.scale[i] });
                     }
                 }
             }
         }
-        (xs, ys)
+        Batch { inputs: xs, targets: ys, scales }
     }
 }
 
@@ -248,10 +271,10 @@ mod tests {
         for demodulate in [false, true] {
             let sampler =
                 CropSampler::new(&[toy_view()], 8, Encoding { demodulate, ..Encoding::default() }, None).unwrap();
-            let (x1, y1) = sampler.batch(3, 17, 4);
-            let (x2, y2) = sampler.batch(3, 17, 4);
-            assert_eq!((x1.clone(), y1.clone()), (x2, y2));
-            assert_ne!(x1, sampler.batch(3, 18, 4).0);
+            let (b1, b2) = (sampler.batch(3, 17, 4), sampler.batch(3, 17, 4));
+            let (x1, y1) = (b1.inputs.clone(), b1.targets.clone());
+            assert_eq!((&b1.inputs, &b1.targets, &b1.scales), (&b2.inputs, &b2.targets, &b2.scales));
+            assert_ne!(x1, sampler.batch(3, 18, 4).inputs);
             // Here target == noisy colour, so whatever the flip/transpose/permutation and
             // whether the albedo (and with it demodulation) is dropped, the first three input
             // channels of every crop equal its target.
@@ -260,6 +283,14 @@ mod tests {
                 let xin = &x1[b * INPUT_CHANNELS * px..][..3 * px];
                 let yt = &y1[b * 3 * px..][..3 * px];
                 assert_eq!(xin, yt);
+            }
+            // Each target decodes, with its scale, to the reference's linear colour (the toy's
+            // reference is its noisy colour, whose channels lie in [0, 1.4]).
+            let toy = toy_view();
+            for (y, sc) in b1.targets.iter().zip(&b1.scales) {
+                let linear = y.exp_m1() * sc;
+                let close = |v: f32| (v - linear).abs() < 1e-4;
+                assert!(toy.reference.pixels.iter().any(|p| close(p.x) || close(p.y) || close(p.z)), "{linear}");
             }
         }
         // Demodulation divides by albedo + eps: the toy's blue albedo 0.6 scales colour by 1/0.61.
@@ -283,7 +314,7 @@ mod tests {
         // Channel 14 flags the albedo + normal pair, channel 15 the AO + depth pair: 1 where
         // given, 0 where the crop dropped them.
         let flags = |p: f32| {
-            let (x, _) = sampler(None).drop_probability(p).batch(5, 0, 64);
+            let x = sampler(None).drop_probability(p).batch(5, 0, 64).inputs;
             let px = 64;
             (0..64).map(|b| (x[(b * INPUT_CHANNELS + 14) * px], x[(b * INPUT_CHANNELS + 15) * px])).collect::<Vec<_>>()
         };

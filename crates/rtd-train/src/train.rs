@@ -43,6 +43,10 @@ pub struct TrainOptions {
     /// Weight of the gradient term of [`training_loss`] (0: plain L1).
     #[serde(default)]
     pub gradient_loss: f32,
+    /// Weight of [`display_loss`], the squared error on the display transform the PSNR is
+    /// measured on (0: off).
+    #[serde(default)]
+    pub display_loss: f32,
     /// Grow the `init` network by a coarser level before training (then `config` is the grown
     /// config; see [`rtd_denoise::grow`]).
     #[serde(default)]
@@ -89,6 +93,7 @@ impl Default for TrainOptions {
             validation_spp: 8,
             init: None,
             gradient_loss: 0.0,
+            display_loss: 0.0,
             grow: None,
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
@@ -137,6 +142,11 @@ impl TrainOptions {
     /// Sets the weight of the gradient term of the loss (see [`training_loss`]).
     pub fn gradient_loss(mut self, w: f32) -> Self {
         self.gradient_loss = w.max(0.0);
+        self
+    }
+    /// Sets the weight of [`display_loss`] in the loss (0: off).
+    pub fn display_loss(mut self, w: f32) -> Self {
+        self.display_loss = w.max(0.0);
         self
     }
     /// Trains only on the noisy renders at these sample counts (`None`: all of them).
@@ -275,6 +285,30 @@ pub fn training_loss(out: Tensor<4>, target: Tensor<4>, gradient_weight: f32) ->
     l1 + (dx.abs().mean() + dy.abs().mean()).mul_scalar(gradient_weight)
 }
 
+/// Encoded colour that decodes beyond this is clipped by the display transform anyway; the
+/// clamp keeps e^y finite for wild outputs.
+const DISPLAY_MAX_ENCODED: f32 = 30.0;
+
+/// The mean squared error of output and target batches `[B, 3, H, W]` of encoded colour on the
+/// display transform that [`rtd_image::metrics::psnr`] compares: each is decoded to linear
+/// radiance, (e^y − 1) × `scale` (demodulation factor ÷ exposure, per pixel), clamped to
+/// [0, 1] and sRGB-encoded. Minimising it maximises the validation PSNR; pixels brighter than
+/// 1 add nothing, so it is meant beside [`training_loss`], not instead of it.
+pub fn display_loss(out: Tensor<4>, target: Tensor<4>, scale: Tensor<4>) -> Tensor<1> {
+    let display = |y: Tensor<4>| {
+        // Linear radiance in [0, 1].
+        let x = y.clamp(0.0, DISPLAY_MAX_ENCODED).exp().sub_scalar(1.0) * scale.clone();
+        let x = x.clamp(0.0, 1.0);
+        // The sRGB transfer: 12.92 x up to 0.0031308, 1.055 x^(1/2.4) − 0.055 above (the power
+        // taken of x ≥ 0.0031308 only, so its derivative stays finite).
+        let dark = x.clone().lower_equal_elem(0.003_130_8);
+        let curve = x.clone().clamp_min(0.003_130_8).powf_scalar(1.0 / 2.4).mul_scalar(1.055).sub_scalar(0.055);
+        curve.mask_where(dark, x.mul_scalar(12.92))
+    };
+    let diff = display(out) - display(target);
+    (diff.clone() * diff).mean()
+}
+
 /// A copy of the network on the plain (non-autodiff) CPU device, for inference.
 fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser, TrainError> {
     let device = Device::flex();
@@ -382,10 +416,15 @@ pub fn train(
         if progress.cancelled() {
             break;
         }
-        let (xs, ys) = sampler.batch(options.seed, state.step, b);
-        let x = Tensor::<4>::from_data(TensorData::new(xs, [b, INPUT_CHANNELS, s, s]), &device);
-        let y = Tensor::<4>::from_data(TensorData::new(ys, [b, 3, s, s]), &device);
-        let loss = training_loss(net.forward(x), y, options.gradient_loss);
+        let batch = sampler.batch(options.seed, state.step, b);
+        let x = Tensor::<4>::from_data(TensorData::new(batch.inputs, [b, INPUT_CHANNELS, s, s]), &device);
+        let y = Tensor::<4>::from_data(TensorData::new(batch.targets, [b, 3, s, s]), &device);
+        let out = net.forward(x);
+        let mut loss = training_loss(out.clone(), y.clone(), options.gradient_loss);
+        if options.display_loss > 0.0 {
+            let scale = Tensor::<4>::from_data(TensorData::new(batch.scales, [b, 3, s, s]), &device);
+            loss = loss + display_loss(out, y, scale).mul_scalar(options.display_loss);
+        }
         let loss_value = loss.clone().into_data().try_into_vec::<f32>().map(|v| v[0]).unwrap_or(f32::NAN);
         let grads = GradientsParams::from_grads(loss.backward(), &net);
         net = optim.step(options.learning_rate_at(state.step), net, grads);
@@ -477,5 +516,35 @@ mod tests {
         assert!((g(&blurred, &edge) - 1.0 / 3.0).abs() < 1e-6, "{}", g(&blurred, &edge));
         assert!(g(&offset, &edge).abs() < 1e-6);
         assert_eq!(value(training_loss(edge.clone(), edge, 2.0)), 0.0);
+    }
+
+    #[test]
+    fn display_loss_is_the_squared_error_psnr_measures_with_finite_gradients() {
+        // Encoded values from black through the sRGB toe and mid-tones to far past white, with
+        // per-pixel scales as demodulation and exposure make them.
+        let n = 8;
+        let out: Vec<f32> = (0..3 * n).map(|i| [0.0, 1e-4, 0.004, 0.3, 1.2, 2.5, 9.0, 80.0][i % n]).collect();
+        let target: Vec<f32> = (0..3 * n).map(|i| [0.0, 0.002, 0.01, 0.1, 1.0, 3.0, 12.0, 0.5][i % n]).collect();
+        let scale: Vec<f32> = (0..3 * n).map(|i| [0.05, 0.3, 1.0, 0.7][i % 4]).collect();
+        // The same on the host, with the metric's own transfer.
+        let display = |y: f32, s: f32| rtd_image::linear_to_srgb(y.min(DISPLAY_MAX_ENCODED).exp_m1() * s);
+        let expected =
+            (0..3 * n).map(|i| (display(out[i], scale[i]) - display(target[i], scale[i])).powi(2)).sum::<f32>()
+                / (3 * n) as f32;
+        assert!(expected > 1e-3, "the example compares unequal images");
+        let device = Device::flex().autodiff();
+        let tensor = |v: &[f32]| Tensor::<4>::from_data(TensorData::new(v.to_vec(), [1, 3, 1, n]), &device);
+        let out_t = tensor(&out).require_grad();
+        let loss = display_loss(out_t.clone(), tensor(&target), tensor(&scale));
+        let got = loss.clone().into_data().try_into_vec::<f32>().unwrap()[0];
+        assert!((got - expected).abs() < 1e-5 * expected.max(1.0), "{got} vs {expected}");
+        // Gradients are finite everywhere (the black pixel and the 80 far past white included),
+        // zero where the output is clipped to white, and push a too-dark output up.
+        let grad = out_t.grad(&loss.backward()).unwrap().into_data().try_into_vec::<f32>().unwrap();
+        assert!(grad.iter().all(|g| g.is_finite()), "{grad:?}");
+        assert_eq!(grad[7], 0.0, "80 encoded decodes far past white: the clamp leaves no gradient");
+        assert!(grad[2] < 0.0, "0.004 is darker than its 0.01 target: the loss falls as it rises");
+        // Equal images: zero loss.
+        assert_eq!(value(display_loss(tensor(&target), tensor(&target), tensor(&scale))), 0.0);
     }
 }

@@ -108,6 +108,10 @@ pub struct TrainArgs {
     /// Weight of an extra L1 term on the error's neighbour differences (sharper edges; 0: off).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
     pub gradient_loss: f32,
+    /// Weight of an extra squared-error term on the display transform the validation PSNR is
+    /// measured on (linear colour clamped to [0, 1], sRGB-encoded; 0: off).
+    #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
+    pub display_loss: f32,
     /// Train only on the noisy renders at these sample counts (comma-separated, e.g. 4,8,16;
     /// default: every count the dataset has).
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]

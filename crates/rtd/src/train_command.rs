@@ -78,6 +78,7 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         .init(args.init.clone())
         .grow(grow)
         .gradient_loss(args.gradient_loss)
+        .display_loss(args.display_loss)
         .spp_levels((!args.spp_levels.is_empty()).then(|| args.spp_levels.clone()))
         .guide_drop(args.guide_drop)
         .seed(args.seed)
@@ -102,13 +103,16 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         anyhow::bail!("interrupted at step {}: the checkpoint is kept; rerun with --resume to continue", state.step);
     }
     if let Some(last) = state.history.last() {
+        // A dataset without validation views records 0 dB; say so instead of printing it.
+        let validation = match last.noisy_psnr > 0.0 {
+            true => format!("validation PSNR {:.2} dB vs noisy {:.2} dB", last.psnr, last.noisy_psnr),
+            false => "no validation views in the dataset".to_string(),
+        };
         eprintln!(
-            "trained {} steps in {:.0} s ({:.1} crops/s): validation PSNR {:.2} dB vs noisy {:.2} dB; model in {}",
+            "trained {} steps in {:.0} s ({:.1} crops/s): {validation}; model in {}",
             state.step,
             last.wall_s,
             last.crops_per_s,
-            last.psnr,
-            last.noisy_psnr,
             args.output.join("model.bpk").display()
         );
     }
