@@ -1,5 +1,6 @@
 //! `rtd train`: Adam on random crops with a warm-up + cosine learning-rate schedule, L1 loss on
-//! log-encoded HDR colour (optionally plus L1 on its image gradients), validation (PSNR, SSIM, relMSE against the noisy input) on held-out
+//! log-encoded HDR colour (optionally plus L1 on its image gradients and a squared error on the
+//! display transform the PSNR measures), validation (PSNR, SSIM, relMSE against the noisy input) on held-out
 //! scenes every epoch, and resumable checkpoints.
 
 use std::path::{Path, PathBuf};
