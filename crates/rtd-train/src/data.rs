@@ -145,10 +145,10 @@ impl CropSampler {
                 let input = v.input(*spp);
                 let e = encoding.exposure(input.color);
                 let planes = encode_planes(&input, e, encoding)?;
-                let target = encode_rgb(&v.reference, demod_albedo(&input, demodulate), e);
+                let albedo = demod_albedo(&input, demodulate);
+                let target = encode_rgb(&v.reference, albedo, e);
                 let plain = demodulate.then(|| (encode_rgb(input.color, None, e), encode_rgb(&v.reference, None, e)));
                 let n = v.reference.pixels.len();
-                let albedo = demod_albedo(&input, demodulate);
                 let scale = (0..3 * n).map(|j| demod_factor(albedo, j % n, j / n) / e).collect();
                 encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, scale, exposure: e, plain });
             }
