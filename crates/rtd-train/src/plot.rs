@@ -4,7 +4,7 @@ use std::path::Path;
 
 use rtd_image::plot::{write_charts, Chart, Series};
 
-use crate::train::TrainState;
+use crate::train::{EpochRecord, TrainState};
 use crate::TrainError;
 
 /// The charts of a run: the loss (smoothed over 20 steps), and validation PSNR per epoch if the
@@ -28,7 +28,7 @@ pub fn training_charts(state: &TrainState) -> Vec<Chart> {
         series: vec![Series::line("train (mean of 20 steps)", smoothed)],
     }];
     let h = &state.history;
-    if h.iter().any(|r| r.noisy_psnr > 0.0) {
+    if h.iter().any(EpochRecord::has_validation) {
         charts.push(Chart {
             title: "validation at 8 spp".into(),
             x_label: "step".into(),
@@ -52,7 +52,7 @@ pub fn write_training_curves(path: &Path, state: &TrainState) -> Result<(), Trai
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::train::{EpochRecord, TrainOptions};
+    use crate::train::TrainOptions;
 
     fn state(noisy_psnr: f64) -> TrainState {
         let record = EpochRecord {

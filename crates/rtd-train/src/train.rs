@@ -203,6 +203,14 @@ pub struct EpochRecord {
     pub wall_s: f64,
 }
 
+impl EpochRecord {
+    /// Whether the epoch was validated: a dataset without validation views records 0 dB for
+    /// the noisy input too, which no real image scores.
+    pub fn has_validation(&self) -> bool {
+        self.noisy_psnr > 0.0
+    }
+}
+
 /// The resumable training state (`state.json` beside the checkpoint).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrainState {

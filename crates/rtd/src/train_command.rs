@@ -103,8 +103,7 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         anyhow::bail!("interrupted at step {}: the checkpoint is kept; rerun with --resume to continue", state.step);
     }
     if let Some(last) = state.history.last() {
-        // A dataset without validation views records 0 dB; say so instead of printing it.
-        let validation = match last.noisy_psnr > 0.0 {
+        let validation = match last.has_validation() {
             true => format!("validation PSNR {:.2} dB vs noisy {:.2} dB", last.psnr, last.noisy_psnr),
             false => "no validation views in the dataset".to_string(),
         };
