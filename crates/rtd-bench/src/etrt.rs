@@ -4,24 +4,22 @@
 //! image's (time-to-quality, extrapolated from the error-versus-time curve when that would
 //! take too long). Every image is scored against a reference with the same metric code.
 
-use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::path::Path;
+use std::time::Duration;
 
 use rtd_denoise::filter::GuidedFilter;
 use rtd_denoise::{DenoiseInput, Denoiser};
-use rtd_guide::{GuidePass, GuideSettings};
 use rtd_image::metrics::{metrics, Metrics};
-use rtd_image::{HdrImage, Layers};
-use rtd_render::{PathTracer, RenderScene, RenderSettings, Silent};
-use rtd_scene::Camera;
+use rtd_image::{HdrImage, Layer, Layers, Quiet};
+use rtd_pipeline::{denoise_input, Budget, Pipeline, SceneView};
+use rtd_render::{PathTracer, RenderSettings};
 use serde::{Deserialize, Serialize};
 
-use crate::{BenchError, Progress};
+use crate::{BenchError, METRIC_BORDER};
+use rtd_image::Progress;
 
-/// Border excluded from every metric.
-pub const CROP: u32 = 8;
-
-/// Options, builder style.
+/// What an equal-time comparison measures: the pipeline's sample count, the image size, the
+/// seeds and the reference.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct EtrtOptions {
     /// Samples per pixel of the denoised pipeline.
@@ -48,7 +46,7 @@ impl Default for EtrtOptions {
 /// One scored image.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Scored {
-    /// What it is.
+    /// What it is, as the tables label it.
     pub name: String,
     /// Samples per pixel behind it.
     pub spp: u32,
@@ -79,8 +77,8 @@ pub struct EtrtReport {
     pub denoise_model: String,
     /// The denoiser's self-ensemble passes.
     pub denoise_passes: usize,
-    /// noisy, rtd denoised, ETRT, ablation (noisy as guide), guided filter.
-    pub images: Vec<Scored>,
+    /// The scored images.
+    pub images: EtrtScores,
     /// Plain path tracing's error over time: (seconds, spp, relMSE, PSNR).
     pub curve: Vec<(f64, u32, f64, f64)>,
     /// Seconds plain path tracing needs to reach the denoised image's relMSE.
@@ -99,9 +97,27 @@ impl EtrtReport {
         self.render_s + self.guide_s + self.denoise_s
     }
 
-    /// The scored image by name.
-    pub fn image(&self, name: &str) -> Option<&Scored> {
-        self.images.iter().find(|s| s.name == name)
+}
+
+/// The images an equal-time comparison scores.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct EtrtScores {
+    /// The pipeline's noisy render.
+    pub noisy: Scored,
+    /// rtd: the noisy render denoised with every guide layer.
+    pub denoised: Scored,
+    /// Plain path tracing given the pipeline's wall time.
+    pub etrt: Scored,
+    /// The thesis's ablation: the denoiser given the noisy render as its guide.
+    pub ablation: Scored,
+    /// The non-learned guided filter on the same inputs.
+    pub filtered: Scored,
+}
+
+impl EtrtScores {
+    /// Every scored image, in table order.
+    pub fn all(&self) -> [&Scored; 5] {
+        [&self.noisy, &self.denoised, &self.etrt, &self.ablation, &self.filtered]
     }
 }
 
@@ -117,42 +133,44 @@ pub struct EtrtImages {
     pub reference: HdrImage,
 }
 
-pub(crate) fn render_spp(
-    rs: &RenderScene,
-    cam: &rtd_scene::Camera,
-    o: &EtrtOptions,
-    seed: u64,
-    spp: u32,
-) -> Result<HdrImage, BenchError> {
-    let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(o.width, o.height).seed(seed))?;
+/// `spp` samples per pixel of `view` with `seed`, outside the pipeline (references).
+fn render_spp(view: &SceneView, o: &EtrtOptions, seed: u64, spp: u32) -> Result<HdrImage, BenchError> {
+    let tracer = PathTracer::new(&view.scene, view.camera.clone(), RenderSettings::new(o.width, o.height).seed(seed))?;
     let mut film = tracer.film();
     tracer.render(&mut film, spp)?;
     Ok(film.beauty())
 }
 
-/// Loads `given` or renders a reference (two independent halves, cached in `cache_dir` under a key
-/// of scene bytes, size, spp and rtd version). Returns (image, description, noise estimate).
+/// A reference image, where it came from, and its estimated remaining relMSE.
+pub struct Reference {
+    /// The image.
+    pub image: HdrImage,
+    /// Its spp and file, for the report.
+    pub description: String,
+    /// Estimated relMSE left in it (from two independent halves; None if loaded).
+    pub relmse: Option<f64>,
+}
+
+/// Loads `given` or renders a reference of `view` (two independent halves, cached in
+/// `cache_dir` under a key of the scene's bytes, size, spp and rtd version).
 pub fn reference(
-    rs: &RenderScene,
-    cam: &rtd_scene::Camera,
-    scene: &Path,
+    view: &SceneView,
     o: &EtrtOptions,
     given: Option<&Path>,
     cache_dir: &Path,
     progress: &dyn Progress,
-) -> Result<(HdrImage, String, Option<f64>), BenchError> {
+) -> Result<Reference, BenchError> {
     if let Some(p) = given {
-        let l = rtd_image::read_exr(p)?;
-        let img = l.rgb("").ok_or_else(|| BenchError::msg(p, "no R,G,B channels"))?;
-        if (img.width, img.height) != (o.width, o.height) {
+        let image = rtd_image::read_exr(p)?.image(Layer::Beauty).ok_or_else(|| BenchError::msg(p, "no R,G,B channels"))?;
+        if (image.width, image.height) != (o.width, o.height) {
             return Err(BenchError::msg(
                 p,
-                format!("reference is {}x{}, the benchmark renders {}x{}", img.width, img.height, o.width, o.height),
+                format!("reference is {}x{}, the benchmark renders {}x{}", image.width, image.height, o.width, o.height),
             ));
         }
-        return Ok((img, format!("loaded from {}", p.display()), None));
+        return Ok(Reference { image, description: format!("loaded from {}", p.display()), relmse: None });
     }
-    let bytes = std::fs::read(scene).map_err(|e| BenchError::io(scene, e))?;
+    let bytes = std::fs::read(&view.path).map_err(|e| BenchError::io(&view.path, e))?;
     // FNV-1a over everything the reference depends on.
     let mut key = 0xcbf2_9ce4_8422_2325u64;
     for b in bytes
@@ -163,48 +181,28 @@ pub fn reference(
     }
     let path = cache_dir.join(format!("reference-{key:016x}.exr"));
     if let Ok(l) = rtd_image::read_exr(&path) {
-        if let (Some(img), Some(noise)) = (l.rgb(""), l.get("noise.Y")) {
-            return Ok((img, format!("{} spp, cached {}", o.reference_spp, path.display()), Some(noise[0] as f64)));
+        if let (Some(image), Some(noise)) = (l.image(Layer::Beauty), l.plane(Layer::NoiseEstimate)) {
+            let description = format!("{} spp, cached {}", o.reference_spp, path.display());
+            return Ok(Reference { image, description, relmse: Some(noise[0] as f64) });
         }
     }
     progress.note(&format!("rendering a {} spp reference (cached afterwards)", o.reference_spp));
-    let a = render_spp(rs, cam, o, o.seed ^ 0xA5A5_0001, o.reference_spp / 2)?;
-    let b = render_spp(rs, cam, o, o.seed ^ 0x5A5A_0002, o.reference_spp / 2)?;
-    let (img, noise_relmse) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
+    let a = render_spp(view, o, o.seed ^ 0xA5A5_0001, o.reference_spp / 2)?;
+    let b = render_spp(view, o, o.seed ^ 0x5A5A_0002, o.reference_spp / 2)?;
+    let (image, noise_relmse) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
     std::fs::create_dir_all(cache_dir).map_err(|e| BenchError::io(cache_dir, e))?;
     let mut layers = Layers::new(o.width, o.height);
-    layers.push_rgb("", &img);
-    layers.push("noise.Y", vec![noise_relmse as f32; (o.width * o.height) as usize]);
+    layers.put_image(Layer::Beauty, &image);
+    layers.put_plane(Layer::NoiseEstimate, vec![noise_relmse as f32; (o.width * o.height) as usize]);
     rtd_image::write_exr(&path, &layers)?;
-    Ok((img, format!("{} spp, rendered and cached {}", o.reference_spp, path.display()), Some(noise_relmse)))
+    let description = format!("{} spp, rendered and cached {}", o.reference_spp, path.display());
+    Ok(Reference { image, description, relmse: Some(noise_relmse) })
 }
 
-/// Loads `scene_path`, builds its BVH and picks its first camera.
-pub fn load_with_camera(scene_path: &Path) -> Result<(RenderScene, Camera), BenchError> {
-    let scene = rtd_scene::load_scene(scene_path)?;
-    let (cam, _) = scene.select_camera(None).map_err(|e| BenchError::msg(scene_path, e))?;
-    Ok((RenderScene::new(scene), cam))
-}
-
-/// Runs the whole comparison on `scene` (its first camera).
+/// Runs the whole comparison on `view` against `given_reference`, or a rendered one cached in
+/// `cache_dir`.
 pub fn run_etrt(
-    scene_path: &Path,
-    denoiser: &Denoiser,
-    options: &EtrtOptions,
-    given_reference: Option<&Path>,
-    cache_dir: &Path,
-    progress: &dyn Progress,
-) -> Result<(EtrtReport, EtrtImages), BenchError> {
-    let (rs, cam) = load_with_camera(scene_path)?;
-    run_etrt_on(scene_path, &rs, &cam, denoiser, options, given_reference, cache_dir, progress)
-}
-
-/// [`run_etrt`] on an already loaded scene (`scene_path` names it and keys the reference cache).
-#[allow(clippy::too_many_arguments)]
-pub fn run_etrt_on(
-    scene_path: &Path,
-    rs: &RenderScene,
-    cam: &Camera,
+    view: &SceneView,
     denoiser: &Denoiser,
     options: &EtrtOptions,
     given_reference: Option<&Path>,
@@ -213,86 +211,56 @@ pub fn run_etrt_on(
 ) -> Result<(EtrtReport, EtrtImages), BenchError> {
     let o = options;
     progress.start(6, "etrt");
-    let (reference, reference_desc, reference_relmse) =
-        reference(rs, cam, scene_path, o, given_reference, cache_dir, progress)?;
+    let reference = reference(view, o, given_reference, cache_dir, progress)?;
     progress.inc(1);
-    // The rtd pipeline, timed part by part.
-    let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(o.width, o.height).seed(o.seed))?;
-    let mut film = tracer.film();
-    let t = Instant::now();
-    tracer.render(&mut film, o.spp)?;
-    let render_s = t.elapsed().as_secs_f64();
+    // The rtd pipeline, timed stage by stage.
+    let pipeline = Pipeline::new(view, RenderSettings::new(o.width, o.height).seed(o.seed)).denoise(denoiser);
+    let run = pipeline.run(Budget::Samples(o.spp), &Quiet)?;
+    let (Some(guide), Some(denoised)) = (run.guide, run.denoised) else {
+        return Err(BenchError::msg(&view.path, "the pipeline ran without its guide pass or denoiser"));
+    };
+    let (render_s, guide_s, denoise_s) = (run.timings.render_s, guide.seconds, run.timings.denoise_s.unwrap_or(0.0));
+    let pipeline_s = render_s + guide_s + denoise_s;
+    let mut film = run.film;
     let noisy = film.beauty();
-    let guide = GuidePass::render(&rs.scene, &rs.bvh, cam, &GuideSettings::new(o.width, o.height))?;
-    let t = Instant::now();
-    let input = DenoiseInput::with_guide_pass(&noisy, &guide);
-    let denoised = denoiser.denoise(&input)?;
-    let denoise_s = t.elapsed().as_secs_f64();
-    let pipeline_s = render_s + guide.seconds + denoise_s;
     progress.inc(1);
     // ETRT: the same render continues for the guide + denoise time.
-    let extra = tracer.render_for(&mut film, Duration::from_secs_f64(guide.seconds + denoise_s), &Silent)?;
+    let tracer = pipeline.tracer()?;
+    let extra = tracer.render_for(&mut film, Duration::from_secs_f64(guide_s + denoise_s), &Quiet)?;
     let etrt = film.beauty();
     progress.inc(1);
     // Equal-sample baselines.
     let ablation = denoiser.denoise(&DenoiseInput::new(&noisy, &noisy))?;
-    let filtered = GuidedFilter::default().filter(&input)?;
+    let filtered = GuidedFilter::default().filter(&denoise_input(&noisy, &guide))?;
     progress.inc(1);
     let score = |name: &str, spp: u32, seconds: f64, img: &HdrImage| Scored {
         name: name.into(),
         spp,
         seconds,
-        metrics: metrics(img, &reference, CROP),
+        metrics: metrics(img, &reference.image, METRIC_BORDER),
     };
-    let images = vec![
-        score("noisy", o.spp, render_s, &noisy),
-        score("rtd denoised", o.spp, pipeline_s, &denoised),
-        score("ETRT (equal time)", film.spp, render_s + extra.seconds, &etrt),
-        score("ablation: noisy as guide", o.spp, pipeline_s, &ablation),
-        score("guided filter", o.spp, render_s + guide.seconds, &filtered),
-    ];
-    // Time-to-quality: keep rendering, doubling the spp, until plain matches the denoised relMSE.
-    let target = images[1].metrics.relmse;
+    let images = EtrtScores {
+        noisy: score("noisy", o.spp, render_s, &noisy),
+        denoised: score("rtd denoised", o.spp, pipeline_s, &denoised),
+        etrt: score("ETRT (equal time)", film.spp, render_s + extra.seconds, &etrt),
+        ablation: score("ablation: noisy as guide", o.spp, pipeline_s, &ablation),
+        filtered: score("guided filter", o.spp, render_s + guide_s, &filtered),
+    };
     let mut curve = vec![
-        (render_s, o.spp, images[0].metrics.relmse, images[0].metrics.psnr),
-        (render_s + extra.seconds, film.spp, images[2].metrics.relmse, images[2].metrics.psnr),
+        (render_s, o.spp, images.noisy.metrics.relmse, images.noisy.metrics.psnr),
+        (render_s + extra.seconds, film.spp, images.etrt.metrics.relmse, images.etrt.metrics.psnr),
     ];
-    let mut plain_s = render_s + extra.seconds;
-    let mut reached = None;
-    while plain_s < pipeline_s * o.max_plain_factor && !progress.cancelled() {
-        if images[2].metrics.relmse <= target && reached.is_none() {
-            reached = Some(plain_s);
-            break;
-        }
-        let more = film.spp.max(1);
-        let stats = tracer.render(&mut film, more)?;
-        plain_s += stats.seconds;
-        let m = metrics(&film.beauty(), &reference, CROP);
-        curve.push((plain_s, film.spp, m.relmse, m.psnr));
-        if m.relmse <= target {
-            // Interpolate in log-log between the last two points.
-            let (t0, e0) = (curve[curve.len() - 2].0, curve[curve.len() - 2].2);
-            let f = ((e0 / target).ln() / (e0 / m.relmse).ln()).clamp(0.0, 1.0);
-            reached = Some((t0.ln() + f * (plain_s.ln() - t0.ln())).exp());
-            break;
-        }
-    }
+    let plain = PlainRender { tracer: &tracer, reference: &reference.image, start_s: render_s + extra.seconds };
+    let reached = plain.time_to_quality(&mut film, &mut curve, images.denoised.metrics.relmse, pipeline_s * o.max_plain_factor, progress)?;
     progress.inc(1);
-    let (time_to_quality_s, extrapolated) = match reached {
-        Some(t) => (t, false),
-        None => {
-            // MSE ∝ 1/time for an unbiased estimator: fit the constant on the last point.
-            let (t1, _, e1, _) = *curve.last().expect("curve has points");
-            (t1 * e1 / target.max(1e-12), true)
-        }
-    };
+    let (time_to_quality_s, extrapolated) = reached;
     let report = EtrtReport {
-        scene: scene_path.display().to_string(),
+        scene: view.path.display().to_string(),
         options: o.clone(),
-        reference: reference_desc,
-        reference_relmse,
+        reference: reference.description,
+        reference_relmse: reference.relmse,
         render_s,
-        guide_s: guide.seconds,
+        guide_s,
         denoise_s,
         denoise_model: denoiser.name().to_string(),
         denoise_passes: denoiser.ensemble_passes(),
@@ -304,30 +272,50 @@ pub fn run_etrt_on(
         pipeline_time_saved_percent: 100.0 * (1.0 - pipeline_s / time_to_quality_s),
     };
     progress.inc(1);
-    Ok((report, EtrtImages { noisy, denoised, etrt, reference }))
+    Ok((report, EtrtImages { noisy, denoised, etrt, reference: reference.image }))
 }
 
-/// Writes `report.json`, `report.md`, `side-by-side.png` and `error-vs-time.png` into `dir`.
-pub fn write_etrt(dir: &Path, report: &EtrtReport, images: &EtrtImages) -> Result<Vec<PathBuf>, BenchError> {
-    std::fs::create_dir_all(dir).map_err(|e| BenchError::io(dir, e))?;
-    let json = dir.join("report.json");
-    let text = serde_json::to_vec_pretty(report).map_err(|e| BenchError::msg(&json, e.to_string()))?;
-    write_text(&json, &text)?;
-    let md = dir.join("report.md");
-    write_text(&md, report.markdown().as_bytes())?;
-    let side = dir.join("side-by-side.png");
-    crate::figures::side_by_side(&side, images)?;
-    let plot = dir.join("error-vs-time.png");
-    crate::figures::error_plot(&plot, std::slice::from_ref(report))?;
-    Ok(vec![json, md, side, plot])
+/// Plain path tracing continued until it matches a target error: time-to-quality.
+struct PlainRender<'t> {
+    tracer: &'t PathTracer<'t>,
+    reference: &'t HdrImage,
+    /// Seconds of plain rendering already in the film.
+    start_s: f64,
 }
 
-/// Writes bytes atomically.
-pub fn write_text(path: &Path, bytes: &[u8]) -> Result<(), BenchError> {
-    rtd_image::write_atomic(path, |w| {
-        std::io::Write::write_all(w, bytes).map_err(|e| rtd_image::ImageError::io(path, e))
-    })?;
-    Ok(())
+impl PlainRender<'_> {
+    /// Keeps rendering `film`, doubling its spp, until its relMSE reaches `target` or `limit_s`
+    /// seconds are spent, appending (seconds, spp, relMSE, PSNR) points to `curve` (whose last
+    /// point is the film's state now). Returns the seconds needed and whether they were
+    /// extrapolated (MSE ∝ 1/time) rather than measured.
+    fn time_to_quality(
+        &self,
+        film: &mut rtd_render::Film,
+        curve: &mut Vec<(f64, u32, f64, f64)>,
+        target: f64,
+        limit_s: f64,
+        progress: &dyn Progress,
+    ) -> Result<(f64, bool), BenchError> {
+        let mut plain_s = self.start_s;
+        if curve.last().is_some_and(|c| c.2 <= target) {
+            return Ok((plain_s, false));
+        }
+        while plain_s < limit_s && !progress.cancelled() {
+            let stats = self.tracer.render(film, film.spp.max(1))?;
+            plain_s += stats.seconds;
+            let m = metrics(&film.beauty(), self.reference, METRIC_BORDER);
+            curve.push((plain_s, film.spp, m.relmse, m.psnr));
+            if m.relmse <= target {
+                // Interpolate in log-log between the last two points.
+                let (t0, e0) = (curve[curve.len() - 2].0, curve[curve.len() - 2].2);
+                let f = ((e0 / target).ln() / (e0 / m.relmse).ln()).clamp(0.0, 1.0);
+                return Ok(((t0.ln() + f * (plain_s.ln() - t0.ln())).exp(), false));
+            }
+        }
+        // MSE ∝ 1/time for an unbiased estimator: fit the constant on the last point.
+        let (t1, e1) = curve.last().map_or((plain_s, target), |c| (c.0, c.2));
+        Ok((t1 * e1 / target.max(1e-12), true))
+    }
 }
 
 impl EtrtReport {
@@ -347,7 +335,7 @@ impl EtrtReport {
             self.denoise_model
         );
         s += "| image | spp | seconds | PSNR (dB) | SSIM | relMSE | SMAPE | SNR (dB) |\n|---|---|---|---|---|---|---|---|\n";
-        for i in &self.images {
+        for i in self.images.all() {
             let m = &i.metrics;
             s += &format!(
                 "| {} | {} | {:.3} | {:.2} | {:.4} | {:.4} | {:.4} | {:.2} |\n",

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use rtd_image::plot::{write_charts, Chart, Series};
+use rtd_plot::{write_charts, Chart, Series};
 use rtd_image::{tonemap_to_srgb8, HdrImage, Tonemap};
 
 use crate::etrt::{EtrtImages, EtrtReport};
@@ -83,12 +83,11 @@ pub fn error_plot(path: &Path, reports: &[EtrtReport]) -> Result<(), BenchError>
     for r in reports {
         let name = Path::new(&r.scene).file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
         series.push(Series::line(format!("{name}: plain"), r.curve.iter().map(|c| (c.0, c.2.log10())).collect()));
-        if let Some(d) = r.image("rtd denoised") {
-            series.push(Series::markers(
-                format!("{name}: rtd {} spp + denoise", d.spp),
-                vec![(d.seconds, d.metrics.relmse.log10())],
-            ));
-        }
+        let d = &r.images.denoised;
+        series.push(Series::markers(
+            format!("{name}: rtd {} spp + denoise", d.spp),
+            vec![(d.seconds, d.metrics.relmse.log10())],
+        ));
     }
     let chart = Chart {
         title: "error against time".into(),

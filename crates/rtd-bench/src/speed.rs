@@ -1,15 +1,13 @@
 //! `rtd bench speed`: render throughput (paths/s, rays/s), guide seconds per megapixel and
 //! denoise seconds per megapixel, each the median of several runs with the min–max range.
 
-use std::path::Path;
-use std::time::Instant;
-
-use rtd_denoise::{DenoiseInput, Denoiser};
-use rtd_guide::{GuidePass, GuideSettings};
-use rtd_render::{PathTracer, RenderScene, RenderSettings};
+use rtd_denoise::Denoiser;
+use rtd_image::{Progress, Quiet};
+use rtd_pipeline::{Budget, Pipeline, SceneView};
+use rtd_render::RenderSettings;
 use serde::{Deserialize, Serialize};
 
-use crate::{BenchError, Progress};
+use crate::BenchError;
 
 /// Median and range of repeated measurements.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -55,41 +53,33 @@ pub struct SpeedReport {
     pub denoise_passes: usize,
 }
 
-/// Measures `runs` times each: an `spp` render, the guide pass and the denoiser.
+/// Measures `runs` times each: an `spp` render of `view` at `width`×`height`, its guide pass
+/// and the denoiser, each run through the pipeline with its own seed.
 pub fn run_speed(
-    scene_path: &Path,
+    view: &SceneView,
     denoiser: &Denoiser,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     spp: u32,
     runs: usize,
     progress: &dyn Progress,
 ) -> Result<SpeedReport, BenchError> {
-    let scene = rtd_scene::load_scene(scene_path)?;
-    let (cam, _) = scene.select_camera(None).map_err(|e| BenchError::msg(scene_path, e))?;
-    let rs = RenderScene::new(scene);
     let mp = (width as f64 * height as f64) / 1e6;
     let (mut paths, mut rays, mut guide_t, mut den_t) = (vec![], vec![], vec![], vec![]);
     progress.start(runs as u64, "speed");
     for run in 0..runs.max(1) {
-        let tracer = PathTracer::new(&rs, cam.clone(), RenderSettings::new(width, height).seed(run as u64))?;
-        let mut film = tracer.film();
-        let stats = tracer.render(&mut film, spp)?;
-        paths.push(stats.paths as f64 / stats.seconds / 1e6);
-        rays.push(stats.rays as f64 / stats.seconds / 1e6);
-        let g = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(width, height))?;
-        guide_t.push(g.seconds / mp);
-        let color = film.beauty();
-        let t = Instant::now();
-        denoiser.denoise(&DenoiseInput::with_guide_pass(&color, &g))?;
-        den_t.push(t.elapsed().as_secs_f64() / mp);
+        let settings = RenderSettings::new(width, height).seed(run as u64);
+        let r = Pipeline::new(view, settings).denoise(denoiser).run(Budget::Samples(spp), &Quiet)?;
+        paths.push(r.stats.paths as f64 / r.stats.seconds / 1e6);
+        rays.push(r.stats.rays as f64 / r.stats.seconds / 1e6);
+        guide_t.push(r.timings.guide_s.unwrap_or(0.0) / mp);
+        den_t.push(r.timings.denoise_s.unwrap_or(0.0) / mp);
         progress.inc(1);
         if progress.cancelled() {
             break;
         }
     }
     Ok(SpeedReport {
-        scene: scene_path.display().to_string(),
+        scene: view.path.display().to_string(),
         width,
         height,
         spp,

@@ -2,20 +2,18 @@
 //! denoised, error against time): the speed/accuracy trade curve, with a summary table.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
-use rtd_denoise::{DenoiseInput, Denoiser};
-use rtd_guide::{GuidePass, GuideSettings};
+use rtd_denoise::Denoiser;
 use rtd_image::metrics::{metrics, Metrics};
-use rtd_image::plot::{write_charts, Chart, Series};
-use rtd_render::{PathTracer, RenderScene, RenderSettings};
+use rtd_image::{HdrImage, Progress, Quiet};
+use rtd_pipeline::{Budget, CameraChoice, Pipeline, SceneView};
+use rtd_plot::{write_charts, Chart, Series};
+use rtd_render::{RenderSettings, SPP_LADDER};
 use serde::{Deserialize, Serialize};
 
-use crate::etrt::{load_with_camera, run_etrt_on, write_etrt, write_text, EtrtOptions, EtrtReport, CROP};
-use crate::{BenchError, Progress};
-
-/// The sweep's sample counts.
-pub const SWEEP_SPP: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
+use crate::etrt::{run_etrt, EtrtOptions, EtrtReport};
+use crate::report_files::{write_etrt, write_json, write_text};
+use crate::{BenchError, METRIC_BORDER};
 
 /// One point of the sweep.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -41,31 +39,25 @@ pub struct SceneResult {
     pub sweep: Vec<SweepPoint>,
 }
 
-/// Renders the sweep for one scene against `reference`.
+/// Runs the pipeline at every count of [`SPP_LADDER`] on `view` and scores the raw and the
+/// denoised image against `reference`.
 pub fn spp_sweep(
-    rs: &RenderScene,
-    cam: &rtd_scene::Camera,
+    view: &SceneView,
     denoiser: &Denoiser,
     o: &EtrtOptions,
-    reference: &rtd_image::HdrImage,
+    reference: &HdrImage,
 ) -> Result<Vec<SweepPoint>, BenchError> {
-    let guide = GuidePass::render(&rs.scene, &rs.bvh, cam, &GuideSettings::new(o.width, o.height))?;
+    let pipeline = Pipeline::new(view, RenderSettings::new(o.width, o.height).seed(o.seed)).denoise(denoiser);
     let mut out = vec![];
-    for spp in SWEEP_SPP {
-        let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(o.width, o.height).seed(o.seed))?;
-        let mut film = tracer.film();
-        let stats = tracer.render(&mut film, spp)?;
-        let noisy = film.beauty();
-        let t = Instant::now();
-        let input = DenoiseInput::with_guide_pass(&noisy, &guide);
-        let denoised = denoiser.denoise(&input)?;
-        let denoise_s = t.elapsed().as_secs_f64();
+    for spp in SPP_LADDER {
+        let run = pipeline.run(Budget::Samples(spp), &Quiet)?;
+        let denoised = run.image();
         out.push(SweepPoint {
             spp,
-            render_s: stats.seconds,
-            pipeline_s: stats.seconds + guide.seconds + denoise_s,
-            raw: metrics(&noisy, reference, CROP),
-            denoised: metrics(&denoised, reference, CROP),
+            render_s: run.timings.render_s,
+            pipeline_s: run.timings.pipeline_s(),
+            raw: metrics(&run.film.beauty(), reference, METRIC_BORDER),
+            denoised: metrics(&denoised, reference, METRIC_BORDER),
         });
     }
     Ok(out)
@@ -85,13 +77,13 @@ pub fn run_suite(
         if progress.cancelled() {
             break;
         }
-        let stem = scene_path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
-        let sub = dir.join(&stem);
-        let cache = dir.join("cache");
-        let (rs, cam) = load_with_camera(scene_path)?;
-        let (report, images) = run_etrt_on(scene_path, &rs, &cam, denoiser, o, None, &cache, progress)?;
-        write_etrt(&sub, &report, &images)?;
-        let sweep = spp_sweep(&rs, &cam, denoiser, o, &images.reference)?;
+        let view = SceneView::load(scene_path, &CameraChoice::Default, None)?;
+        for w in &view.warnings {
+            progress.note(&format!("{}: {w}", scene_path.display()));
+        }
+        let (report, images) = run_etrt(&view, denoiser, o, None, &dir.join("cache"), progress)?;
+        write_etrt(&dir.join(view.name()), &report, &images)?;
+        let sweep = spp_sweep(&view, denoiser, o, &images.reference)?;
         results.push(SceneResult { etrt: report, sweep });
         // Summaries are rewritten after every scene, so an interrupted suite keeps finished work.
         write_summary(dir, &results)?;
@@ -100,10 +92,8 @@ pub fn run_suite(
 }
 
 fn write_summary(dir: &Path, results: &[SceneResult]) -> Result<(), BenchError> {
-    let json = dir.join("summary.json");
-    let text = serde_json::to_vec_pretty(results).map_err(|e| BenchError::msg(&json, e.to_string()))?;
-    write_text(&json, &text)?;
-    write_text(&dir.join("summary.md"), summary_markdown(results).as_bytes())?;
+    write_json(&dir.join("summary.json"), &results)?;
+    write_text(&dir.join("summary.md"), &summary_markdown(results))?;
     let reports: Vec<EtrtReport> = results.iter().map(|r| r.etrt.clone()).collect();
     crate::figures::error_plot(&dir.join("error-vs-time.png"), &reports)?;
     let mut series = vec![];
@@ -134,13 +124,10 @@ pub fn summary_markdown(results: &[SceneResult]) -> String {
     let mut s = String::from("| scene | noisy PSNR | rtd PSNR | ETRT PSNR (spp) | filter PSNR | no-guide PSNR | rtd relMSE | ETRT relMSE | speed-up | time saved |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for r in results {
         let e = &r.etrt;
-        let g =
-            |n: &str| e.image(n).map(|i| (i.metrics.psnr, i.metrics.relmse, i.spp)).unwrap_or((f64::NAN, f64::NAN, 0));
-        let (np, _, _) = g("noisy");
-        let (dp, dr, _) = g("rtd denoised");
-        let (ep, er, es) = g("ETRT (equal time)");
-        let (fp, _, _) = g("guided filter");
-        let (ap, _, _) = g("ablation: noisy as guide");
+        let i = &e.images;
+        let (np, dp, dr) = (i.noisy.metrics.psnr, i.denoised.metrics.psnr, i.denoised.metrics.relmse);
+        let (ep, er, es) = (i.etrt.metrics.psnr, i.etrt.metrics.relmse, i.etrt.spp);
+        let (fp, ap) = (i.filtered.metrics.psnr, i.ablation.metrics.psnr);
         s += &format!(
             "| {} | {np:.2} | {dp:.2} | {ep:.2} ({es}) | {fp:.2} | {ap:.2} | {dr:.4} | {er:.4} | {:.1}×{} | {:.1}% |\n",
             Path::new(&e.scene).file_name().and_then(|n| n.to_str()).unwrap_or("?"),
@@ -150,11 +137,11 @@ pub fn summary_markdown(results: &[SceneResult]) -> String {
         );
     }
     s += "\nspp sweep, PSNR raw → denoised (dB):\n\n| scene |";
-    for spp in SWEEP_SPP {
+    for spp in SPP_LADDER {
         s += &format!(" {spp} |");
     }
     s += "\n|---|";
-    s += &"---|".repeat(SWEEP_SPP.len());
+    s += &"---|".repeat(SPP_LADDER.len());
     s += "\n";
     for r in results {
         s += &format!("| {} |", Path::new(&r.etrt.scene).file_name().and_then(|n| n.to_str()).unwrap_or("?"));

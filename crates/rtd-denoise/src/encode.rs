@@ -1,10 +1,12 @@
 //! HDR input encoding: sanitising (NaN → 0, Inf and negatives clamped), auto-exposure from the
 //! log-average luminance, a log transfer for colour, and assembly of the network's input planes.
 
+use glam::Vec3;
 use rayon::prelude::*;
-use rtd_image::HdrImage;
+use rtd_image::{luminance, HdrImage};
 
-use crate::{DenoiseError, INPUT_CHANNELS};
+use crate::planes::{Plane, INPUT_CHANNELS};
+use crate::DenoiseError;
 
 /// Largest colour value accepted before exposure; +Inf and larger values are clamped to it.
 pub const MAX_INPUT: f32 = 1e7;
@@ -61,11 +63,6 @@ impl<'a> DenoiseInput<'a> {
     pub fn new(color: &'a HdrImage, guide: &'a HdrImage) -> Self {
         DenoiseInput { color, guide, albedo_normal: None, ao_depth: None }
     }
-    /// Colour plus every layer of rtd's own guide pass (guide RGB, albedo, normal, AO, depth).
-    pub fn with_guide_pass(color: &'a HdrImage, pass: &'a rtd_guide::GuidePass) -> Self {
-        DenoiseInput::new(color, &pass.guide).albedo_normal(&pass.albedo, &pass.normal).ao_depth(&pass.ao, &pass.depth)
-    }
-
     /// Adds albedo and normal.
     pub fn albedo_normal(mut self, albedo: &'a HdrImage, normal: &'a HdrImage) -> Self {
         self.albedo_normal = Some((albedo, normal));
@@ -114,10 +111,6 @@ fn clean(x: f32, lo: f32, hi: f32) -> f32 {
     }
 }
 
-fn luminance(r: f32, g: f32, b: f32) -> f32 {
-    0.2126 * r + 0.7152 * g + 0.0722 * b
-}
-
 /// Pixels per task where a per-pixel pass over an image is split between threads.
 const PIXEL_CHUNK: usize = 16384;
 
@@ -132,7 +125,7 @@ pub fn auto_exposure(color: &HdrImage) -> f32 {
         .map(|chunk| {
             let (mut sum, mut n) = (0.0f64, 0usize);
             for p in chunk {
-                let l = luminance(clean(p.x, 0.0, MAX_INPUT), clean(p.y, 0.0, MAX_INPUT), clean(p.z, 0.0, MAX_INPUT));
+                let l = luminance(Vec3::new(clean(p.x, 0.0, MAX_INPUT), clean(p.y, 0.0, MAX_INPUT), clean(p.z, 0.0, MAX_INPUT)));
                 if l > 1e-8 {
                     sum += (l as f64).ln();
                     n += 1;
@@ -212,20 +205,22 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) ->
     let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
     // One plane per task; absent inputs leave their planes (and flags) at 0.
     planes.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
-        let (k, guide) = (c % 3, &input.guide.pixels);
-        match (c, input.albedo_normal, input.ao_depth.zip(depth_scale)) {
-            (0..=2, _, _) => encode_color_plane(plane, input.color, demod, k, exposure),
-            (3..=5, _, _) => plane.iter_mut().zip(guide).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
-            (6..=8, Some((a, _)), _) => plane.iter_mut().zip(&a.pixels).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
-            (9..=11, Some((_, nrm)), _) => {
+        let guide = &input.guide.pixels;
+        match (Plane::of(c), input.albedo_normal, input.ao_depth.zip(depth_scale)) {
+            (Plane::Color(k), _, _) => encode_color_plane(plane, input.color, demod, k, exposure),
+            (Plane::Guide(k), _, _) => plane.iter_mut().zip(guide).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
+            (Plane::Albedo(k), Some((a, _)), _) => {
+                plane.iter_mut().zip(&a.pixels).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0))
+            }
+            (Plane::Normal(k), Some((_, nrm)), _) => {
                 plane.iter_mut().zip(&nrm.pixels).for_each(|(v, p)| *v = clean(p[k], -1.0, 1.0))
             }
-            (12, _, Some(((ao, _), _))) => plane.iter_mut().zip(ao).for_each(|(v, a)| *v = clean(*a, 0.0, 1.0)),
+            (Plane::Ao, _, Some(((ao, _), _))) => plane.iter_mut().zip(ao).for_each(|(v, a)| *v = clean(*a, 0.0, 1.0)),
             // Depth relative to the mean hit distance, so the scene's scale does not matter.
-            (13, _, Some(((_, d), s))) if encoding.depth => {
+            (Plane::Depth, _, Some(((_, d), s))) if encoding.depth => {
                 plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0))
             }
-            (14, Some(_), _) | (15, _, Some(_)) => plane.fill(1.0),
+            (Plane::HasAlbedoNormal, Some(_), _) | (Plane::HasAoDepth, _, Some(_)) => plane.fill(1.0),
             _ => {}
         }
     });
@@ -235,7 +230,6 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
 
     #[test]
     fn transfer_round_trips_and_sanitises() {
@@ -294,12 +288,13 @@ mod tests {
         let with = encode_planes(&input, 1.0, Encoding::default()).unwrap();
         let without = encode_planes(&input, 1.0, Encoding { depth: false, ..Encoding::default() }).unwrap();
         // Depth relative to the mean hit distance (4).
-        assert_eq!(plane(&with, 13), [0.5, 1.5]);
-        assert_eq!(plane(&without, 13), [0.0, 0.0]);
-        for c in (0..INPUT_CHANNELS).filter(|c| *c != 13) {
+        let (ao, depth, flag) = (Plane::Ao.index(), Plane::Depth.index(), Plane::HasAoDepth.index());
+        assert_eq!(plane(&with, depth), [0.5, 1.5]);
+        assert_eq!(plane(&without, depth), [0.0, 0.0]);
+        for c in (0..INPUT_CHANNELS).filter(|c| *c != depth) {
             assert_eq!(plane(&with, c), plane(&without, c), "plane {c}");
         }
-        assert_eq!((plane(&without, 12), plane(&without, 15)), (vec![0.25, 1.0], vec![1.0, 1.0]));
+        assert_eq!((plane(&without, ao), plane(&without, flag)), (vec![0.25, 1.0], vec![1.0, 1.0]));
     }
 
     #[test]

@@ -14,13 +14,12 @@ use crate::encode::{decode_color, demod_albedo, demod_factor, encode_planes, Den
 use crate::fast::{FastNet, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::{DenoiseError, INPUT_CHANNELS};
+use rtd_image::MAX_DIMENSION;
 
 /// The shipped model's config and weights, compiled into the binary.
 const BUILTIN_CONFIG: &str = include_str!("../../../models/rtd-denoiser.json");
 const BUILTIN_WEIGHTS: &[u8] = include_bytes!("../../../models/rtd-denoiser.bpk");
 
-/// Largest accepted image side.
-pub const MAX_SIDE: u32 = 16384;
 
 /// How far past the image edges the edge pixels are repeated (rounded up to the network's
 /// alignment, and at most the tile margin); the network's own zero padding lies beyond that.
@@ -205,8 +204,8 @@ impl Denoiser {
     /// Denoises one image.
     pub fn denoise(&self, input: &DenoiseInput) -> Result<HdrImage, DenoiseError> {
         let (w, h) = input.size()?;
-        if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
-            return Err(DenoiseError::Input(format!("image size {w}x{h} is outside 1..={MAX_SIDE} per side")));
+        if w == 0 || h == 0 || w > MAX_DIMENSION || h > MAX_DIMENSION {
+            return Err(DenoiseError::Input(format!("image size {w}x{h} is outside 1..={MAX_DIMENSION} per side")));
         }
         let encoding = self.config.encoding();
         let exposure = encoding.exposure(input.color);

@@ -9,10 +9,12 @@ pub mod filter;
 pub mod grow;
 pub mod infer;
 pub mod model;
+pub mod planes;
 
 pub use encode::DenoiseInput;
-pub use infer::{Denoiser, MAX_SIDE};
-pub use model::{DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
+pub use infer::Denoiser;
+pub use model::{DenoiserConfig, DenoiserNet};
+pub use planes::INPUT_CHANNELS;
 
 /// Errors from the denoiser.
 #[derive(Debug, thiserror::Error)]

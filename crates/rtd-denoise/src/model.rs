@@ -10,11 +10,7 @@ use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
-
-/// Input channels the network reads, in order (see `encode.rs`): encoded noisy colour (3), guide
-/// RGB = albedo × AO (3), albedo (3), normal (3), AO (1), depth (1), and two 0/1 flags saying
-/// whether albedo+normal and AO+depth are present.
-pub const INPUT_CHANNELS: usize = 16;
+use crate::planes::INPUT_CHANNELS;
 
 /// Network hyper-parameters; serialised as JSON beside the weights so a model file is
 /// self-describing.

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use rtd_image::{HdrImage, Layers};
+use rtd_image::{HdrImage, Layer, Layers};
 use rtd_render::surface::{shading_normal, Surface};
 use rtd_render::{RenderError, RenderSettings, SceneBvh, Workers};
 use rtd_scene::{Camera, MaterialFootprint, Projection, Scene};
@@ -314,11 +314,11 @@ impl GuidePass {
 
     /// Adds (or replaces) this pass's channels in `layers`, which must be the same size.
     pub fn add_to(&self, layers: &mut Layers) {
-        layers.push_rgb("guide", &self.guide);
-        layers.push_rgb("albedo", &self.albedo);
-        layers.push_xyz("normal", &self.normal);
-        layers.push("depth.Z", self.depth.clone());
-        layers.push("ao.Y", self.ao.clone());
+        layers.put_image(Layer::Guide, &self.guide);
+        layers.put_image(Layer::Albedo, &self.albedo);
+        layers.put_image(Layer::Normal, &self.normal);
+        layers.put_plane(Layer::Depth, self.depth.clone());
+        layers.put_plane(Layer::Ao, self.ao.clone());
     }
 }
 

@@ -11,9 +11,11 @@ pub fn parent_dir(path: &Path) -> &Path {
     }
 }
 
-/// Writes a file atomically: `write` fills a temporary file in the destination's directory,
-/// which is then renamed over `path`. On any error the temporary file is removed, so a
-/// half-written output never appears under the final name.
+/// Writes a file atomically and durably: `write` fills a temporary file in the destination's
+/// directory, which is flushed to disk (`fsync`), renamed over `path`, and the directory is
+/// flushed after the rename. On any error the temporary file is removed, so a half-written
+/// output never appears under the final name, and a power cut cannot leave a renamed but
+/// empty file.
 pub fn write_atomic<F>(path: &Path, write: F) -> Result<(), ImageError>
 where
     F: FnOnce(&mut std::io::BufWriter<&mut std::fs::File>) -> Result<(), ImageError>,
@@ -35,7 +37,25 @@ where
         use std::os::unix::fs::PermissionsExt;
         tmp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| ImageError::io(path, e))?;
     }
+    tmp.as_file().sync_all().map_err(|e| ImageError::io(path, e))?;
     tmp.persist(path).map_err(|e| ImageError::io(path, e.error))?;
+    sync_dir(dir).map_err(|e| ImageError::io(path, e))
+}
+
+/// Writes `bytes` to `path` through [`write_atomic`].
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
+    write_atomic(path, |w| w.write_all(bytes).map_err(|e| ImageError::io(path, e)))
+}
+
+/// Flushes a directory's entries to disk, so a rename in it survives a power cut. Where the
+/// platform cannot open a directory as a file this does nothing.
+fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::fs::File::open(dir)?.sync_all()?;
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
     Ok(())
 }
 
@@ -61,7 +81,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("x.bin");
         std::fs::write(&out, b"old").unwrap();
-        write_atomic(&out, |w| w.write_all(b"new").map_err(|e| ImageError::io(&out, e))).unwrap();
+        write_bytes_atomic(&out, b"new").unwrap();
         assert_eq!(std::fs::read(&out).unwrap(), b"new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "temp file left behind");
     }
 }

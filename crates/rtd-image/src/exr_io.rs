@@ -2,10 +2,11 @@ use std::io::Write;
 use std::path::Path;
 
 use exr::prelude::{
-    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
+    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer, LayerAttributes,
     LineOrder, SmallVec, WritableImage,
 };
 
+use crate::layer::{Channels, Layer};
 use crate::{write_atomic, HdrImage, ImageError, MAX_DIMENSION};
 
 /// Named float channels of one size: the content of a one-part EXR.
@@ -36,22 +37,21 @@ impl Layers {
         self.channels.push((name, samples));
     }
 
-    /// Adds an RGB image as `R,G,B` (empty prefix) or `prefix.R/G/B`.
-    pub fn push_rgb(&mut self, prefix: &str, image: &HdrImage) {
-        self.push_vec3(prefix, ["R", "G", "B"], image);
-    }
-
-    /// Adds an image of vectors as `prefix.X/Y/Z` (for normals).
-    pub fn push_xyz(&mut self, prefix: &str, image: &HdrImage) {
-        self.push_vec3(prefix, ["X", "Y", "Z"], image);
-    }
-
-    fn push_vec3(&mut self, prefix: &str, names: [&str; 3], image: &HdrImage) {
+    /// Adds an image layer (an RGB or XYZ [`Layer`]); replaces its channels if present.
+    pub fn put_image(&mut self, layer: Layer, image: &HdrImage) {
         assert_eq!((image.width, image.height), (self.width, self.height), "layer size mismatch");
-        for (c, n) in names.iter().enumerate() {
-            let name = if prefix.is_empty() { n.to_string() } else { format!("{prefix}.{n}") };
+        let names = layer.channel_names();
+        assert_eq!(names.len(), 3, "{layer:?} is not an image layer");
+        for (c, name) in names.into_iter().enumerate() {
             self.push(name, image.channel(c));
         }
+    }
+
+    /// Adds a one-value-per-pixel layer (a [`Channels::Scalar`] [`Layer`]).
+    pub fn put_plane(&mut self, layer: Layer, samples: Vec<f32>) {
+        let mut names = layer.channel_names();
+        assert_eq!(names.len(), 1, "{layer:?} is not a scalar layer");
+        self.push(names.remove(0), samples);
     }
 
     /// The channel of that name, if present.
@@ -59,28 +59,30 @@ impl Layers {
         self.channels.iter().find(|(n, _)| n == name).map(|(_, s)| s.as_slice())
     }
 
-    /// The RGB image stored as `R,G,B` (empty prefix) or `prefix.R/G/B`, if all three exist.
-    pub fn rgb(&self, prefix: &str) -> Option<HdrImage> {
-        self.vec3(prefix, ["R", "G", "B"])
+    /// The image stored in `layer`'s channels, if all three exist.
+    pub fn image(&self, layer: Layer) -> Option<HdrImage> {
+        self.image_as(layer, layer.channels())
     }
 
-    /// The vector image stored as `prefix.X/Y/Z`, if all three exist.
-    pub fn xyz(&self, prefix: &str) -> Option<HdrImage> {
-        self.vec3(prefix, ["X", "Y", "Z"])
-    }
-
-    fn vec3(&self, prefix: &str, names: [&str; 3]) -> Option<HdrImage> {
-        let full = |n: &str| {
-            if prefix.is_empty() {
-                n.to_string()
-            } else {
-                format!("{prefix}.{n}")
-            }
+    /// The image under `layer`'s prefix with the channel naming `channels` (for files from
+    /// other software, which may store normals as `normal.R/G/B`).
+    pub fn image_as(&self, layer: Layer, channels: Channels) -> Option<HdrImage> {
+        let suffixes = match channels {
+            Channels::Rgb => ["R", "G", "B"],
+            Channels::Xyz => ["X", "Y", "Z"],
+            Channels::Scalar(_) => return None,
         };
-        let r = self.get(&full(names[0]))?;
-        let g = self.get(&full(names[1]))?;
-        let b = self.get(&full(names[2]))?;
+        let prefix = layer.prefix();
+        let full = |n: &str| if prefix.is_empty() { n.to_string() } else { format!("{prefix}.{n}") };
+        let r = self.get(&full(suffixes[0]))?;
+        let g = self.get(&full(suffixes[1]))?;
+        let b = self.get(&full(suffixes[2]))?;
         Some(HdrImage::from_planes(self.width, self.height, r, g, b))
+    }
+
+    /// The samples of a one-value-per-pixel layer, if present.
+    pub fn plane(&self, layer: Layer) -> Option<&[f32]> {
+        layer.channel_names().first().and_then(|n| self.get(n))
     }
 }
 
@@ -102,7 +104,7 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
     // Blocks in increasing order: with the default (unspecified) order, blocks compressed in
     // parallel land in completion order and the same image gives different bytes.
     let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
-    let layer = Layer::new(size, LayerAttributes::default(), encoding, AnyChannels::sort(channels));
+    let layer = ExrLayer::new(size, LayerAttributes::default(), encoding, AnyChannels::sort(channels));
     let image = Image::from_layer(layer);
     // exr needs a seekable writer: encode to memory, then write the bytes atomically.
     let mut encoded = std::io::Cursor::new(Vec::new());
@@ -149,14 +151,16 @@ mod tests {
         let path = dir.path().join("t.exr");
         let img = HdrImage::from_pixels(3, 2, (0..6).map(|i| Vec3::new(i as f32, 1e6, -0.5)).collect());
         let mut layers = Layers::new(3, 2);
-        layers.push_rgb("", &img);
-        layers.push_xyz("normal", &img);
-        layers.push("depth.Z", vec![f32::NAN, 1.0, 2.0, 3.0, f32::INFINITY, 5.0]);
+        layers.put_image(Layer::Beauty, &img);
+        layers.put_image(Layer::Normal, &img);
+        layers.put_plane(Layer::Depth, vec![f32::NAN, 1.0, 2.0, 3.0, f32::INFINITY, 5.0]);
         write_exr(&path, &layers).unwrap();
         let back = read_exr(&path).unwrap();
-        assert_eq!(back.rgb("").unwrap(), img);
-        assert_eq!(back.xyz("normal").unwrap(), img);
-        assert_eq!(back.get("depth.Z").unwrap(), &[0.0, 1.0, 2.0, 3.0, 0.0, 5.0]);
+        assert_eq!(back.image(Layer::Beauty).unwrap(), img);
+        assert_eq!(back.image(Layer::Normal).unwrap(), img);
+        assert_eq!(back.image_as(Layer::Normal, Channels::Rgb), None);
+        assert_eq!(back.get("normal.X").unwrap(), img.channel(0));
+        assert_eq!(back.plane(Layer::Depth).unwrap(), &[0.0, 1.0, 2.0, 3.0, 0.0, 5.0]);
     }
 
     #[test]
@@ -170,7 +174,7 @@ mod tests {
             (0..w * h).map(|i| Vec3::new((i % 97) as f32, (i * 31 % 1013) as f32 * 1e-3, 0.5)).collect(),
         );
         let mut layers = Layers::new(w, h);
-        layers.push_rgb("", &img);
+        layers.put_image(Layer::Beauty, &img);
         let bytes: Vec<Vec<u8>> = (0..4)
             .map(|k| {
                 let path = dir.path().join(format!("{k}.exr"));

@@ -1,5 +1,11 @@
 use glam::Vec3;
 
+/// Rec. 709 luminance of a linear RGB colour.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
 /// A linear RGB float image, row-major, top row first.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HdrImage {

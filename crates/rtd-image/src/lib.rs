@@ -4,23 +4,34 @@
 //! - [`Layers`]: named float channels of one size, written to and read from a one-part EXR
 //!   (`R,G,B`, `albedo.R`, `normal.X`, `depth.Z`, ...).
 //! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`].
-//! - Every write is atomic: a temporary file in the target directory, then a rename.
+//! - [`Layer`]: the EXR layer vocabulary every writer and reader shares.
+//! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`].
+//! - Every write is atomic and durable: a temporary file in the target directory, `fsync`,
+//!   then a rename.
+//! - [`Progress`]: the one observer trait long library calls report to.
+//! - [`MAX_DIMENSION`]: the one size limit on any image side.
+
+#![warn(missing_docs)]
 
 mod atomic;
 mod error;
 mod exr_io;
 mod format;
 mod hdr;
+mod layer;
 mod ldr;
+pub mod metrics;
+mod progress;
 
-pub use atomic::{parent_dir, write_atomic};
+pub use atomic::{parent_dir, write_atomic, write_bytes_atomic};
 pub use error::ImageError;
 pub use exr_io::{read_exr, write_exr, Layers};
 pub use format::ImageFormat;
-pub use hdr::HdrImage;
-pub mod metrics;
-pub mod plot;
+pub use hdr::{luminance, HdrImage};
+pub use layer::{Channels, Layer};
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
+pub use progress::{Progress, Quiet};
 
-/// Largest width or height rtd accepts for any image it reads or writes.
+/// Largest width or height rtd accepts for any image it reads, renders, denoises or writes.
+/// Every size check in rtd uses this one constant.
 pub const MAX_DIMENSION: u32 = 16384;

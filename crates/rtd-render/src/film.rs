@@ -4,7 +4,7 @@
 //! same bytes as N+M samples in one go.
 
 use glam::{DVec3, Vec3};
-use rtd_image::{HdrImage, Layers};
+use rtd_image::{HdrImage, Layer, Layers};
 
 /// Accumulated samples for one image.
 #[derive(Debug, Clone)]
@@ -71,10 +71,10 @@ impl Film {
     /// The EXR channels: `R,G,B`, `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`.
     pub fn layers(&self) -> Layers {
         let mut l = Layers::new(self.width, self.height);
-        l.push_rgb("", &self.beauty());
-        l.push_rgb("albedo", &self.albedo());
-        l.push_xyz("normal", &self.normal());
-        l.push("depth.Z", self.depth());
+        l.put_image(Layer::Beauty, &self.beauty());
+        l.put_image(Layer::Albedo, &self.albedo());
+        l.put_image(Layer::Normal, &self.normal());
+        l.put_plane(Layer::Depth, self.depth());
         l
     }
 }

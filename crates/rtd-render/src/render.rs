@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use rtd_image::{Progress, Quiet, MAX_DIMENSION};
 use rtd_scene::{Camera, Scene};
 
 use crate::bvh::SceneBvh;
@@ -15,13 +16,15 @@ use crate::sampler::Sampler;
 use crate::sampling::sample_tent;
 use crate::RenderError;
 
-/// Largest accepted image side.
-pub const MAX_RESOLUTION: u32 = 16384;
 /// Largest accepted image area: the film keeps 52 bytes per pixel (f64 beauty, f32 AOVs), so
 /// this bounds it near 3.5 GB on the 24 GiB machines rtd targets.
 pub const MAX_PIXELS: u64 = 1 << 26;
 /// Largest accepted samples per pixel in one call.
 pub const MAX_SPP: u32 = 1 << 24;
+/// Largest accepted maximum path depth.
+pub const MAX_DEPTH: u32 = 1024;
+/// The sample counts rtd compares at: a dataset's noisy renders and the benchmarks' spp sweep.
+pub const SPP_LADDER: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
 
 /// A scene prepared for rendering: the scene plus its BVH and light set.
 pub struct RenderScene {
@@ -91,28 +94,23 @@ impl RenderSettings {
 
     /// Checks the settings, naming the first problem.
     pub fn validate(&self) -> Result<(), RenderError> {
-        if self.width == 0 || self.height == 0 || self.width > MAX_RESOLUTION || self.height > MAX_RESOLUTION {
-            return Err(RenderError::InvalidSettings(format!(
-                "resolution {}x{} is outside 1..={MAX_RESOLUTION} per side",
-                self.width, self.height
-            )));
+        let (width, height) = (self.width, self.height);
+        if width == 0 || height == 0 || width > MAX_DIMENSION || height > MAX_DIMENSION {
+            return Err(RenderError::Resolution { width, height });
         }
-        if self.width as u64 * self.height as u64 > MAX_PIXELS {
-            return Err(RenderError::InvalidSettings(format!(
-                "resolution {}x{} exceeds {MAX_PIXELS} pixels (8192x8192); render tiles or lower the resolution",
-                self.width, self.height
-            )));
+        if width as u64 * height as u64 > MAX_PIXELS {
+            return Err(RenderError::TooManyPixels { width, height });
         }
-        if self.max_depth > 1024 {
-            return Err(RenderError::InvalidSettings(format!("max depth {} is above 1024", self.max_depth)));
+        if self.max_depth > MAX_DEPTH {
+            return Err(RenderError::MaxDepth(self.max_depth));
         }
         if let Some(c) = self.clamp {
             if !(c > 0.0 && c.is_finite()) {
-                return Err(RenderError::InvalidSettings(format!("clamp {c} must be a positive finite number")));
+                return Err(RenderError::Clamp(c));
             }
         }
         if self.threads == Some(0) {
-            return Err(RenderError::InvalidSettings("threads must be at least 1".into()));
+            return Err(RenderError::NoThreads);
         }
         Ok(())
     }
@@ -133,20 +131,6 @@ pub struct RenderStats {
     pub spp: u32,
 }
 
-/// Receives progress and can stop a render between passes. All methods have no-op defaults.
-pub trait RenderObserver: Sync {
-    /// `rows` more rows of the current pass are finished.
-    fn rows_done(&self, _rows: u64) {}
-    /// Returning true stops the render after the pass in flight.
-    fn cancelled(&self) -> bool {
-        false
-    }
-}
-
-/// The observer that does nothing.
-pub struct Silent;
-impl RenderObserver for Silent {}
-
 /// Renders a [`RenderScene`] through a camera.
 pub struct PathTracer<'a> {
     scene: &'a RenderScene,
@@ -166,7 +150,7 @@ impl Workers {
                 .num_threads(n)
                 .build()
                 .map(|p| Workers(Some(p)))
-                .map_err(|e| RenderError::InvalidSettings(e.to_string())),
+                .map_err(|source| RenderError::ThreadPool { threads: n, source }),
             None => Ok(Workers(None)),
         }
     }
@@ -210,15 +194,16 @@ impl<'a> PathTracer<'a> {
 
     /// Adds `samples` samples per pixel to `film`, one pass of 1 spp at a time.
     pub fn render(&self, film: &mut Film, samples: u32) -> Result<RenderStats, RenderError> {
-        self.render_observed(film, samples, &Silent)
+        self.render_observed(film, samples, &Quiet)
     }
 
-    /// As [`PathTracer::render`], reporting progress; stops early (keeping whole passes) if cancelled.
+    /// As [`PathTracer::render`], reporting each finished image row to `progress`; stops early
+    /// (keeping whole passes) if it is cancelled.
     pub fn render_observed(
         &self,
         film: &mut Film,
         samples: u32,
-        observer: &dyn RenderObserver,
+        observer: &dyn Progress,
     ) -> Result<RenderStats, RenderError> {
         self.check_film(film, samples)?;
         let start = Instant::now();
@@ -239,7 +224,7 @@ impl<'a> PathTracer<'a> {
         &self,
         film: &mut Film,
         budget: Duration,
-        observer: &dyn RenderObserver,
+        observer: &dyn Progress,
     ) -> Result<RenderStats, RenderError> {
         self.check_film(film, 1)?;
         let start = Instant::now();
@@ -264,20 +249,20 @@ impl<'a> PathTracer<'a> {
 
     fn check_film(&self, film: &Film, samples: u32) -> Result<(), RenderError> {
         if (film.width, film.height) != (self.settings.width, self.settings.height) {
-            return Err(RenderError::InvalidSettings("film size does not match the render settings".into()));
+            return Err(RenderError::FilmSize { film: (film.width, film.height), settings: (self.settings.width, self.settings.height) });
         }
         if samples == 0 || samples > MAX_SPP || film.spp as u64 + samples as u64 > MAX_SPP as u64 {
-            return Err(RenderError::InvalidSettings(format!("samples per pixel must be in 1..={MAX_SPP} in total")));
+            return Err(RenderError::Samples { have: film.spp, asked: samples });
         }
         Ok(())
     }
 
     /// One sample per pixel over the whole image.
-    fn pass(&self, film: &mut Film, observer: &dyn RenderObserver) -> RenderStats {
+    fn pass(&self, film: &mut Film, observer: &dyn Progress) -> RenderStats {
         self.pool.install(|| self.pass_inner(film, observer))
     }
 
-    fn pass_inner(&self, film: &mut Film, observer: &dyn RenderObserver) -> RenderStats {
+    fn pass_inner(&self, film: &mut Film, observer: &dyn Progress) -> RenderStats {
         let (w, h) = (self.settings.width, self.settings.height);
         let index = film.spp;
         let rays = AtomicU64::new(0);
@@ -327,7 +312,7 @@ impl<'a> PathTracer<'a> {
                 }
                 rays.fetch_add(row_rays, Ordering::Relaxed);
                 nonfinite.fetch_add(row_bad, Ordering::Relaxed);
-                observer.rows_done(1);
+                observer.inc(1);
             });
         film.spp += 1;
         let bad = nonfinite.into_inner();

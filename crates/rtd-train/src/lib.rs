@@ -4,12 +4,14 @@
 
 pub mod data;
 pub mod dataset;
-pub mod evaluate;
 pub mod plot;
 pub mod scenegen;
 pub mod train;
 
 use std::path::{Path, PathBuf};
+
+// The one progress trait, from the image crate; `crate::Progress` names it inside this crate.
+use rtd_image::Progress;
 
 /// Errors from dataset generation and training; each names the file concerned.
 #[derive(Debug, thiserror::Error)]
@@ -54,21 +56,3 @@ impl TrainError {
         TrainError::Invalid { path: path.to_path_buf(), message: message.into() }
     }
 }
-
-/// Progress reporting and cancellation for long library calls (the CLI shows a bar).
-pub trait Progress: Sync {
-    /// A new phase of `len` units begins.
-    fn start(&self, _len: u64, _what: &str) {}
-    /// `n` more units are done.
-    fn inc(&self, _n: u64) {}
-    /// A line worth showing the user.
-    fn note(&self, _line: &str) {}
-    /// True when the user asked to stop; work stops after the unit in flight, keeping what is done.
-    fn cancelled(&self) -> bool {
-        false
-    }
-}
-
-/// A [`Progress`] that shows nothing and never cancels.
-pub struct Quiet;
-impl Progress for Quiet {}

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use rtd_image::plot::{write_charts, Chart, Series};
+use rtd_plot::{write_charts, Chart, Series};
 
 use crate::train::{EpochRecord, TrainState};
 use crate::TrainError;

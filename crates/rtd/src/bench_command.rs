@@ -1,11 +1,11 @@
 //! `rtd bench`: thin wrappers over the library's benchmark reports.
 
 use anyhow::Context;
+use rtd_pipeline::{CameraChoice, SceneView};
 
 use crate::args::{BenchArgs, BenchCommand, EtrtArgs, PipelineArgs, SpeedArgs, SuiteArgs, ValidationArgs};
-use crate::denoise_command::load_model;
+use crate::output::{warn_all, write_json};
 use crate::progress::TaskBar;
-use crate::render_command::write_json;
 
 /// Runs `rtd bench …`.
 pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
@@ -18,11 +18,13 @@ pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
 }
 
 fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
-    let model = load_model(&args.denoiser)?;
+    let model = args.denoiser.load()?;
+    let view = load_first_camera(&args.scene)?;
     let bar = TaskBar::new(args.quiet);
-    let report =
-        rtd_bench::speed::run_speed(&args.scene, &model, args.width, args.height, args.spp, args.runs as usize, &bar)?;
+    let size = (args.width, args.height);
+    let report = rtd_bench::speed::run_speed(&view, &model, size, args.spp, args.runs as usize, &bar);
     bar.finish();
+    let report = report?;
     if let Some(p) = &args.report {
         write_json(p, &report)?;
     }
@@ -31,7 +33,7 @@ fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
 }
 
 fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
-    let model = load_model(&args.pipeline.denoiser)?;
+    let model = args.pipeline.denoiser.load()?;
     let mut scenes = vec![];
     let inputs = if args.scenes.is_empty() { vec![std::path::PathBuf::from("scenes")] } else { args.scenes.clone() };
     for p in inputs {
@@ -54,8 +56,9 @@ fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     let bar = TaskBar::new(args.quiet);
-    let results = rtd_bench::suite::run_suite(&scenes, &model, &options, &args.output, &bar)?;
+    let results = rtd_bench::suite::run_suite(&scenes, &model, &options, &args.output, &bar);
     bar.finish();
+    let results = results?;
     crate::print_line(&rtd_bench::suite::summary_markdown(&results))?;
     Ok(())
 }
@@ -73,40 +76,47 @@ fn etrt_options(p: &PipelineArgs, seed: u64) -> rtd_bench::EtrtOptions {
 }
 
 fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
-    let model = load_model(&args.pipeline.denoiser)?;
+    let model = args.pipeline.denoiser.load()?;
     let options = etrt_options(&args.pipeline, args.seed);
+    let view = load_first_camera(&args.scene)?;
     let bar = TaskBar::new(args.quiet);
     let cache = args.output.join("cache");
-    let (report, images) = rtd_bench::run_etrt(&args.scene, &model, &options, args.reference.as_deref(), &cache, &bar)?;
+    let result = rtd_bench::run_etrt(&view, &model, &options, args.reference.as_deref(), &cache, &bar);
     bar.finish();
-    rtd_bench::etrt::write_etrt(&args.output, &report, &images)?;
+    let (report, images) = result?;
+    rtd_bench::report_files::write_etrt(&args.output, &report, &images)?;
     crate::print_line(&report.markdown())?;
     Ok(())
 }
 
 fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
-    let model = load_model(&args.denoiser)?;
+    let model = args.denoiser.load()?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     if let Some(dir) = &args.save_images {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create directory", dir.display()))?;
     }
     let bar = TaskBar::new(args.quiet);
-    let report = rtd_train::evaluate::validation_report(
+    let report = rtd_bench::validation::validation_report(
         &args.data,
         &model,
         args.spp,
         &args.external,
         args.save_images.as_deref(),
         &bar,
-    )?;
+    );
     bar.finish();
+    let report = report?;
     write_json(&args.output.join("report.json"), &report)?;
     let md = report.markdown();
-    let path = args.output.join("report.md");
-    rtd_image::write_atomic(&path, |w| {
-        std::io::Write::write_all(w, md.as_bytes()).map_err(|e| rtd_image::ImageError::io(&path, e))
-    })?;
+    rtd_image::write_bytes_atomic(&args.output.join("report.md"), md.as_bytes())?;
     crate::print_line(&md)?;
     Ok(())
+}
+
+/// Loads a benchmark scene with its first camera, printing its warnings.
+fn load_first_camera(scene: &std::path::Path) -> anyhow::Result<SceneView> {
+    let view = SceneView::load(scene, &CameraChoice::Default, None)?;
+    warn_all(scene, view.warnings.iter().map(String::as_str));
+    Ok(view)
 }

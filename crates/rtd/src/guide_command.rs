@@ -7,7 +7,7 @@ use rtd_guide::{GuidePass, GuideSettings};
 use rtd_image::{ImageFormat, Tonemap};
 
 use crate::args::GuideArgs;
-use crate::render_command::{check_output, check_report_path, prepare_view, write_json, PreparedView};
+use crate::output::{check_output, check_report_path, write_json};
 
 /// What `rtd guide --report` writes.
 #[derive(Debug, Clone, Serialize)]
@@ -37,12 +37,13 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
     if let Some(r) = &args.report {
         check_report_path(r)?;
     }
-    let PreparedView { scene: prepared, camera, load_s } = prepare_view(view, None)?;
+    let loaded = view.load(None)?;
+    let prepared = &loaded.scene;
     let settings = GuideSettings::new(view.width, view.height)
         .ao_rays(args.ao_rays)
         .ao_radius(args.ao_radius)
         .threads(view.threads.map(|t| t as usize));
-    let pass = GuidePass::render(&prepared.scene, &prepared.bvh, &camera, &settings)?;
+    let pass = GuidePass::render(&prepared.scene, &prepared.bvh, &loaded.camera, &settings)?;
     match ImageFormat::from_path(&args.output)? {
         ImageFormat::Exr => rtd_image::write_exr(&args.output, &pass.layers())?,
         ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(&args.output, &pass.guide, 0.0, Tonemap::Clamp)?,
@@ -55,7 +56,7 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
         output: args.output.display().to_string(),
         width: view.width,
         height: view.height,
-        load_s,
+        load_s: loaded.load_s,
         bvh_s: prepared.bvh_seconds,
         guide_s: pass.seconds,
         triangles: prepared.scene.triangles.len(),

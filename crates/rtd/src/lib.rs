@@ -3,10 +3,12 @@
 //! Everything a command does is a library call ([`render_command::render`] and friends), so
 //! tests and benchmarks reach the same code paths as users.
 
+mod arg_values;
 pub mod args;
 pub mod bench_command;
 pub mod denoise_command;
 pub mod guide_command;
+pub mod output;
 pub mod progress;
 pub mod render_command;
 pub mod train_command;
@@ -15,6 +17,7 @@ pub use rtd_bench as bench;
 pub use rtd_denoise as denoise;
 pub use rtd_guide as guide;
 pub use rtd_image as image;
+pub use rtd_pipeline as pipeline;
 pub use rtd_render as render;
 pub use rtd_scene as scene;
 pub use rtd_train as train;

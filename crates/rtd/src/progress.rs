@@ -4,7 +4,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use rtd_render::RenderObserver;
+use rtd_image::Progress;
 
 static INTERRUPTED: OnceLock<Arc<AtomicBool>> = OnceLock::new();
 
@@ -36,24 +36,7 @@ pub fn bar(len: u64, message: &str, quiet: bool) -> ProgressBar {
     pb
 }
 
-/// Feeds render progress into a bar and passes Ctrl-C through as cancellation.
-pub struct BarObserver {
-    /// The bar, counting image rows over all passes.
-    pub bar: ProgressBar,
-    /// The interrupt flag.
-    pub interrupted: Arc<AtomicBool>,
-}
-
-impl RenderObserver for BarObserver {
-    fn rows_done(&self, rows: u64) {
-        self.bar.inc(rows);
-    }
-    fn cancelled(&self) -> bool {
-        self.interrupted.load(Ordering::SeqCst)
-    }
-}
-
-/// Feeds a library [`rtd_train::Progress`] into a bar; Ctrl-C cancels.
+/// Feeds a library call's [`Progress`] into a bar with ETA, one bar per phase; Ctrl-C cancels.
 pub struct TaskBar {
     bar: std::sync::Mutex<Option<ProgressBar>>,
     quiet: bool,
@@ -73,7 +56,7 @@ impl TaskBar {
     }
 }
 
-impl rtd_train::Progress for TaskBar {
+impl Progress for TaskBar {
     fn start(&self, len: u64, what: &str) {
         let mut slot = self.bar.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(b) = slot.take() {

@@ -53,7 +53,7 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
 }
 
 fn bar_cancelled(bar: &TaskBar) -> bool {
-    rtd_train::Progress::cancelled(bar)
+    rtd_image::Progress::cancelled(bar)
 }
 
 /// Runs `rtd train` and returns the final state.

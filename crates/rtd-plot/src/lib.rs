@@ -1,12 +1,16 @@
 //! Line plots written as PNG (loss curves, error-versus-time curves), drawn with plotters and
-//! the bundled DejaVu Sans font so that they look the same on every machine.
+//! the bundled DejaVu Sans font so that they look the same on every machine. Only training and
+//! the benchmarks plot, so plotting (plotters and the 760 KB font) lives here rather than in
+//! the image I/O crate every other crate builds on.
+
+#![warn(missing_docs)]
 
 use std::path::Path;
 use std::sync::Once;
 
 use plotters::prelude::*;
 
-use crate::ImageError;
+use rtd_image::ImageError;
 
 static FONT: Once = Once::new();
 
@@ -79,7 +83,7 @@ pub fn write_charts(path: &Path, charts: &[Chart]) -> Result<(), ImageError> {
         root.present().map_err(|e| err(e.to_string()))?;
     }
     let img = image::RgbImage::from_raw(w, h, buf).ok_or_else(|| ImageError::invalid(path, "plot buffer size"))?;
-    crate::write_atomic(path, |out| {
+    rtd_image::write_atomic(path, |out| {
         img.write_to(out, image::ImageFormat::Png).map_err(|e| ImageError::invalid(path, e))
     })
 }

@@ -4,31 +4,62 @@
 //! non-learned guided filter (its parameters chosen by grid search on the training views), and
 //! optionally external results such as Intel OIDN's, all with the same metric code.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use rtd_denoise::filter::GuidedFilter;
 use rtd_denoise::{DenoiseInput, Denoiser};
 use rtd_image::metrics::{metrics, Metrics};
-use rtd_image::HdrImage;
+use rtd_image::{HdrImage, Layer, Layers, Progress};
+use rtd_train::data::{load_views, View};
 use serde::Serialize;
 
-use crate::data::{load_views, View};
-use crate::{Progress, TrainError};
+use crate::{BenchError, METRIC_BORDER};
 
-/// Border excluded from every metric, as in the benchmark.
-pub const CROP: u32 = 8;
+/// A method the validation benchmark compares.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(into = "String")]
+pub enum Method {
+    /// The noisy input itself.
+    Noisy,
+    /// rtd's denoiser with every guide layer.
+    AllGuides,
+    /// rtd's denoiser with only the guide RGB (the mode for other software's renders).
+    GuideRgbOnly,
+    /// The thesis's §6.4 ablation: the noisy image given as the guide.
+    NoisyAsGuide,
+    /// The non-learned guided filter, tuned on the training views.
+    GuidedFilter,
+    /// Another denoiser's saved outputs, by the name given on the command line.
+    External(String),
+}
 
-/// The methods compared, in table order.
-pub const METHODS: [&str; 5] =
-    ["noisy", "rtd (all guides)", "rtd (guide RGB only)", "ablation: noisy as guide", "guided filter"];
+impl Method {
+    /// The label tables and reports use.
+    pub fn label(&self) -> &str {
+        match self {
+            Method::Noisy => "noisy",
+            Method::AllGuides => "rtd (all guides)",
+            Method::GuideRgbOnly => "rtd (guide RGB only)",
+            Method::NoisyAsGuide => "ablation: noisy as guide",
+            Method::GuidedFilter => "guided filter",
+            Method::External(name) => name,
+        }
+    }
+}
+
+impl From<Method> for String {
+    fn from(m: Method) -> String {
+        m.label().to_string()
+    }
+}
 
 /// Metrics of every method on one view.
 #[derive(Clone, Debug, Serialize)]
 pub struct ViewResult {
     /// The view's file.
     pub view: String,
-    /// (method, metrics) pairs.
-    pub methods: Vec<(String, Metrics)>,
+    /// (method, metrics) pairs, in the report's method order.
+    pub methods: Vec<(Method, Metrics)>,
 }
 
 /// The whole report.
@@ -43,7 +74,7 @@ pub struct ValidationReport {
     /// Per-view results.
     pub views: Vec<ViewResult>,
     /// Means per method.
-    pub mean: Vec<(String, Metrics)>,
+    pub mean: Vec<(Method, Metrics)>,
 }
 
 fn mean_metrics(all: &[&Metrics]) -> Metrics {
@@ -59,14 +90,14 @@ fn mean_metrics(all: &[&Metrics]) -> Metrics {
 }
 
 /// Picks the guided filter's parameters that maximise mean PSNR on `views` at `spp`.
-pub fn tune_filter(views: &[View], spp: u32) -> Result<GuidedFilter, TrainError> {
+pub fn tune_filter(views: &[View], spp: u32) -> Result<GuidedFilter, BenchError> {
     let mut best = (f64::NEG_INFINITY, GuidedFilter::default());
     for sc in [0.25f32, 0.5, 1.0, 2.0, 4.0] {
         for sg in [0.02f32, 0.05, 0.1, 0.3, 1.0] {
             let f = GuidedFilter::default().sigma_color(sc).sigma_guide(sg);
             let mut total = 0.0;
             for v in views {
-                total += rtd_image::metrics::psnr(&f.filter(&v.input(spp))?, &v.reference, CROP);
+                total += rtd_image::metrics::psnr(&f.filter(&v.input(spp))?, &v.reference, METRIC_BORDER);
             }
             if total > best.0 {
                 best = (total, f);
@@ -85,10 +116,10 @@ pub fn validation_report(
     data: &Path,
     model: &Denoiser,
     spp: u32,
-    external: &[(String, std::path::PathBuf)],
+    external: &[(String, PathBuf)],
     save: Option<&Path>,
     progress: &dyn Progress,
-) -> Result<ValidationReport, TrainError> {
+) -> Result<ValidationReport, BenchError> {
     let train = load_views(data, false)?;
     let val = load_views(data, true)?;
     progress.start(val.len() as u64 + 1, "evaluate");
@@ -103,30 +134,30 @@ pub fn validation_report(
         let denoised = model.denoise(&input)?;
         let stem = Path::new(&v.record.file).file_stem().and_then(|s| s.to_str()).unwrap_or_default().to_string();
         if let Some(dir) = save {
-            let mut layers = rtd_image::Layers::new(color.width, color.height);
-            layers.push_rgb("", &denoised);
+            let mut layers = Layers::new(color.width, color.height);
+            layers.put_image(Layer::Beauty, &denoised);
             rtd_image::write_exr(&dir.join(format!("{stem}.exr")), &layers)?;
         }
-        let mut methods: Vec<(String, HdrImage)> = vec![
-            (METHODS[0].into(), color.clone()),
-            (METHODS[1].into(), denoised),
-            (METHODS[2].into(), model.denoise(&guide_only)?),
-            (METHODS[3].into(), model.denoise(&ablation)?),
-            (METHODS[4].into(), filter.filter(&input)?),
+        let mut methods: Vec<(Method, HdrImage)> = vec![
+            (Method::Noisy, color.clone()),
+            (Method::AllGuides, denoised),
+            (Method::GuideRgbOnly, model.denoise(&guide_only)?),
+            (Method::NoisyAsGuide, model.denoise(&ablation)?),
+            (Method::GuidedFilter, filter.filter(&input)?),
         ];
         for (name, dir) in external {
             let path = dir.join(format!("{stem}.exr"));
             let layers = rtd_image::read_exr(&path)?;
-            let img = layers.rgb("").ok_or_else(|| TrainError::msg(&path, "no R,G,B channels"))?;
-            methods.push((name.clone(), img));
+            let img = layers.image(Layer::Beauty).ok_or_else(|| BenchError::msg(&path, "no R,G,B channels"))?;
+            methods.push((Method::External(name.clone()), img));
         }
         views.push(ViewResult {
             view: v.record.file.clone(),
-            methods: methods.iter().map(|(n, img)| (n.clone(), metrics(img, &v.reference, CROP))).collect(),
+            methods: methods.into_iter().map(|(n, img)| (n, metrics(&img, &v.reference, METRIC_BORDER))).collect(),
         });
         progress.inc(1);
     }
-    let names: Vec<String> =
+    let names: Vec<Method> =
         views.first().map(|v| v.methods.iter().map(|(n, _)| n.clone()).collect()).unwrap_or_default();
     let mean = names
         .iter()
@@ -140,20 +171,25 @@ impl ValidationReport {
     /// A Markdown table of the means, plus the per-view PSNR.
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "Validation views: {}, noisy input at {} spp, metrics with an {CROP}-px border cropped.\n\n",
+            "Validation views: {}, noisy input at {} spp, metrics with an {METRIC_BORDER}-px border cropped.\n\n",
             self.views.len(),
             self.spp
         );
         s += "| method | PSNR (dB) | SSIM | relMSE | SMAPE | SNR (dB) |\n|---|---|---|---|---|---|\n";
         for (n, m) in &self.mean {
             s += &format!(
-                "| {n} | {:.2} | {:.4} | {:.4} | {:.4} | {:.2} |\n",
-                m.psnr, m.ssim, m.relmse, m.smape, m.snr_db
+                "| {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.2} |\n",
+                n.label(),
+                m.psnr,
+                m.ssim,
+                m.relmse,
+                m.smape,
+                m.snr_db
             );
         }
         s += "\nPer view, PSNR (dB):\n\n| view |";
         for (n, _) in &self.mean {
-            s += &format!(" {n} |");
+            s += &format!(" {} |", n.label());
         }
         s += "\n|---|";
         s += &"---|".repeat(self.mean.len());

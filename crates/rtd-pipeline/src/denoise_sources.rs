@@ -1,0 +1,184 @@
+//! `rtd denoise` as a library call: a noisy image and its guide layers, from rtd or any other
+//! renderer, read from files, checked, denoised and written.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use rtd_denoise::{DenoiseInput, Denoiser};
+use rtd_image::{Channels, HdrImage, ImageFormat, Layer, Layers, Tonemap};
+use serde::Serialize;
+
+use crate::PipelineError;
+
+/// The files a denoise reads: the noisy colour, and a guide (material colour × AO) or albedo
+/// + normal, or all three. EXR inputs are read from their named layer (`guide.*`,
+/// `albedo.*`, `normal.*`) if present, else from `R,G,B`; PNG and JPEG as sRGB (normals as
+/// n·0.5 + 0.5).
+#[derive(Clone, Debug, Default)]
+pub struct DenoiseSources {
+    /// Noisy colour.
+    pub color: PathBuf,
+    /// Guide RGB: material colour × AO.
+    pub guide: Option<PathBuf>,
+    /// Albedo.
+    pub albedo: Option<PathBuf>,
+    /// Normal (world or camera space).
+    pub normal: Option<PathBuf>,
+}
+
+/// What a denoise did, as `rtd denoise --report` writes it.
+#[derive(Debug, Clone, Serialize)]
+pub struct DenoiseOutcome {
+    /// Colour input.
+    pub color: String,
+    /// Output file.
+    pub output: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Seconds spent in the denoiser (encoding, network, decoding).
+    pub denoise_s: f64,
+    /// The model used (path or builtin:…).
+    pub denoise_model: String,
+    /// Self-ensemble passes (1: the network alone).
+    pub denoise_passes: usize,
+    /// Which inputs were given.
+    pub inputs: Vec<String>,
+    /// Input colour values that were NaN or infinite (set to 0 or clamped).
+    pub nonfinite_input_values: usize,
+}
+
+impl DenoiseSources {
+    /// Reads the inputs, denoises them with `denoiser` and writes the result to `output` (EXR:
+    /// the denoised `R,G,B`; PNG/JPEG: exposed by `exposure` stops and clamped).
+    pub fn run(&self, denoiser: &Denoiser, output: &Path, exposure: f32) -> Result<DenoiseOutcome, PipelineError> {
+        let format = ImageFormat::from_path(output)?;
+        let color = read_layer(&self.color, Layer::Beauty)?;
+        let mut inputs = vec!["color".to_string()];
+        let albedo_normal = match (&self.albedo, &self.normal) {
+            (Some(a), Some(n)) => {
+                let (ai, ni) = (read_layer(a, Layer::Albedo)?, read_layer(n, Layer::Normal)?);
+                same_size(a, &ai, &color)?;
+                same_size(n, &ni, &color)?;
+                inputs.extend(["albedo".to_string(), "normal".to_string()]);
+                Some((ai, ni))
+            }
+            (None, None) => None,
+            _ => return Err(self.missing("albedo and normal must be given together")),
+        };
+        let guide = match (&self.guide, &albedo_normal) {
+            (Some(g), _) => {
+                let gi = read_layer(g, Layer::Guide)?;
+                same_size(g, &gi, &color)?;
+                inputs.push("guide".into());
+                gi
+            }
+            // Without a guide image, the albedo stands in for material colour × AO.
+            (None, Some((a, _))) => a.clone(),
+            (None, None) => return Err(self.missing("a guide (material colour × AO) or albedo with normal is needed")),
+        };
+        let mut input = DenoiseInput::new(&color, &guide);
+        if let Some((a, n)) = &albedo_normal {
+            input = input.albedo_normal(a, n);
+        }
+        let t = Instant::now();
+        let out = finite(denoiser.denoise(&input)?);
+        let denoise_s = t.elapsed().as_secs_f64();
+        match format {
+            ImageFormat::Exr => {
+                let mut layers = Layers::new(out.width, out.height);
+                layers.put_image(Layer::Beauty, &out);
+                rtd_image::write_exr(output, &layers)?
+            }
+            ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(output, &out, exposure, Tonemap::Clamp)?,
+        }
+        Ok(DenoiseOutcome {
+            color: self.color.display().to_string(),
+            output: output.display().to_string(),
+            width: out.width,
+            height: out.height,
+            denoise_s,
+            denoise_model: denoiser.name().to_string(),
+            denoise_passes: denoiser.ensemble_passes(),
+            inputs,
+            nonfinite_input_values: count_nonfinite(&color),
+        })
+    }
+
+    fn missing(&self, message: &str) -> PipelineError {
+        PipelineError::Input { path: self.color.clone(), message: message.into() }
+    }
+}
+
+impl DenoiseOutcome {
+    /// The one-line summary `rtd denoise` prints.
+    pub fn summary(&self) -> String {
+        let nonfinite = match self.nonfinite_input_values {
+            0 => String::new(),
+            n => format!(" ({n} NaN/Inf input values zeroed or clamped)"),
+        };
+        format!("denoised {}x{} in {:.3} s with {}{nonfinite}", self.width, self.height, self.denoise_s, self.denoise_model)
+    }
+}
+
+/// Reads the image of `layer` from `path`: from an EXR that layer if present, else `R,G,B`
+/// (normals may also be `normal.R/G/B` or `X,Y,Z`); from PNG/JPEG the sRGB-decoded RGB, with
+/// 8-bit normals decoded from n·0.5 + 0.5.
+fn read_layer(path: &Path, layer: Layer) -> Result<HdrImage, PipelineError> {
+    let vector = layer.channels() == Channels::Xyz;
+    let img = match ImageFormat::from_path(path)? {
+        ImageFormat::Exr => {
+            let layers = rtd_image::read_exr(path)?;
+            let named = layers.image(layer).or_else(|| layers.image_as(layer, Channels::Rgb));
+            named
+                .or_else(|| layers.image(Layer::Beauty))
+                .or_else(|| if vector { layers.image_as(Layer::Beauty, Channels::Xyz) } else { None })
+                .ok_or_else(|| PipelineError::Input {
+                    path: path.to_path_buf(),
+                    message: format!("no `{}.*` or R,G,B channels", layer.prefix()),
+                })?
+        }
+        ImageFormat::Png | ImageFormat::Jpeg => {
+            let img = rtd_image::read_ldr(path)?;
+            if vector {
+                // 8-bit normal maps store n·0.5 + 0.5 (before sRGB decoding, which read_ldr undid).
+                let e = |x: f32| rtd_image::linear_to_srgb(x) * 2.0 - 1.0;
+                let px = img.pixels.iter().map(|p| Vec3::new(e(p.x), e(p.y), e(p.z))).collect();
+                HdrImage::from_pixels(img.width, img.height, px)
+            } else {
+                img
+            }
+        }
+    };
+    Ok(img)
+}
+
+fn same_size(path: &Path, img: &HdrImage, color: &HdrImage) -> Result<(), PipelineError> {
+    if (img.width, img.height) != (color.width, color.height) {
+        return Err(PipelineError::Input {
+            path: path.to_path_buf(),
+            message: format!(
+                "image is {}x{} but the colour image is {}x{}",
+                img.width, img.height, color.width, color.height
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Counts NaN/Inf values in an image.
+fn count_nonfinite(img: &HdrImage) -> usize {
+    img.pixels.iter().map(|p| p.to_array().iter().filter(|v| !v.is_finite()).count()).sum()
+}
+
+/// Replaces NaN/Inf in an output (the denoiser never makes them; this is the last guard).
+fn finite(img: HdrImage) -> HdrImage {
+    let px = img
+        .pixels
+        .iter()
+        .map(|p| Vec3::from_array(p.to_array().map(|v| if v.is_finite() { v } else { 0.0 })))
+        .collect();
+    HdrImage::from_pixels(img.width, img.height, px)
+}

@@ -1,0 +1,85 @@
+//! A scene loaded and prepared for rendering through one camera.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use rtd_render::RenderScene;
+use rtd_scene::{Camera, Environment};
+
+use crate::PipelineError;
+
+/// Which camera renders the scene.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum CameraChoice {
+    /// The file's first perspective camera, else its first camera, else an automatic camera
+    /// framing the scene's bounds (with a warning).
+    #[default]
+    Default,
+    /// A camera of the file by name or index.
+    Named(String),
+    /// A camera at `from` looking at `at` with this vertical field of view in degrees.
+    LookAt {
+        /// Camera position.
+        from: Vec3,
+        /// Point looked at.
+        at: Vec3,
+        /// Vertical field of view in degrees.
+        fov: f32,
+    },
+}
+
+/// A loaded scene with its BVH, light set and chosen camera.
+pub struct SceneView {
+    /// The scene file.
+    pub path: PathBuf,
+    /// Scene, BVH and lights.
+    pub scene: RenderScene,
+    /// The camera.
+    pub camera: Camera,
+    /// Seconds spent loading the file.
+    pub load_s: f64,
+    /// What the user should be told: load warnings, an automatic camera, an empty scene.
+    pub warnings: Vec<String>,
+}
+
+impl SceneView {
+    /// Loads `path`, replaces its environment with `environment` if given (`R,G,B` radiance or
+    /// an equirectangular `.exr`), picks the camera and builds the BVH and light set.
+    pub fn load(path: &Path, camera: &CameraChoice, environment: Option<&str>) -> Result<Self, PipelineError> {
+        let t = Instant::now();
+        let mut scene = rtd_scene::load_scene(path)?;
+        if let Some(env) = environment {
+            scene.environment = Environment::parse(env)?;
+        }
+        let load_s = t.elapsed().as_secs_f64();
+        let camera_error = |message: String| PipelineError::Camera { path: path.to_path_buf(), message };
+        let (camera, camera_warning) = match camera {
+            CameraChoice::LookAt { from, at, fov } => {
+                if from == at {
+                    return Err(camera_error("--look-from and --look-at are the same point".into()));
+                }
+                (Camera::look_at(*from, *at, *fov), None)
+            }
+            CameraChoice::Named(name) => scene.select_camera(Some(name)).map_err(|e| camera_error(e.to_string()))?,
+            CameraChoice::Default => scene.select_camera(None).map_err(|e| camera_error(e.to_string()))?,
+        };
+        let mut warnings = scene.warnings.clone();
+        warnings.extend(camera_warning);
+        if scene.triangles.is_empty() {
+            warnings.push("scene has no triangles".into());
+        }
+        let scene = RenderScene::new(scene);
+        Ok(SceneView { path: path.to_path_buf(), scene, camera, load_s, warnings })
+    }
+
+    /// The warning a render (not a guide pass) of this view deserves: no light at all.
+    pub fn lighting_warning(&self) -> Option<&'static str> {
+        self.scene.lights.is_empty().then_some("scene has no lights and no --env; the image will be black")
+    }
+
+    /// The scene file's stem, for naming reports and figures.
+    pub fn name(&self) -> String {
+        self.path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string()
+    }
+}
