@@ -176,6 +176,40 @@ fn bad_scenes_fail_cleanly() {
     assert!(files.is_empty(), "outputs written on failure: {files:?}");
 }
 
+/// A glTF whose POSITION accessor claims 10⁹ vertices in a 48-byte buffer view is refused with one
+/// line naming the file, the mesh and the accessor, and nothing is written.
+#[test]
+fn a_corrupt_gltf_accessor_fails_the_render() {
+    let dir = tempfile::tempdir().unwrap();
+    // Four vertices of a unit quad, little-endian f32.
+    let positions = concat!(
+        "data:application/octet-stream;base64,",
+        "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAACAPwAAgD8AAAAAAAAAAAAAgD8AAAAA"
+    );
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"name": "Quad", "primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": [{"byteLength": 48, "uri": positions}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 1_000_000_000u64, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}]
+    });
+    let scene = dir.path().join("corrupt.gltf");
+    std::fs::write(&scene, doc.to_string()).unwrap();
+    let out = dir.path().join("out.png");
+    let o = rtd(&["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap(), "--spp", "1", "-q"]);
+    assert_fails(
+        &o,
+        "corrupt.gltf: mesh 0 (\"Quad\"), accessor 0: 1000000000 elements of 12 bytes run past the end of \
+         buffer view 0 (48 bytes)",
+    );
+    assert!(!out.exists(), "a refused scene must not leave an image");
+    assert_eq!(files_in(dir.path()), vec![scene], "nothing but the scene is left in the directory");
+}
+
 #[test]
 fn nan_and_degenerate_triangles_are_skipped_with_a_warning() {
     let dir = tempfile::tempdir().unwrap();

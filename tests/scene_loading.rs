@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 use rtd::render::SceneBvh;
-use rtd::scene::{load_scene, AlphaMode, Light, Projection};
+use rtd::scene::{load_scene, AccessorProblem, AlphaMode, CameraError, Light, Projection, SceneError};
 use serde_json::{json, Value};
 
 /// Little-endian f32 bytes.
@@ -295,8 +295,12 @@ fn cameras_and_lights() {
     assert!((cam.forward - Vec3::NEG_X).length() < 1e-5, "{}", cam.forward);
     let (cam, _) = sc.select_camera(Some("0")).unwrap();
     assert_eq!(cam.projection, Projection::Perspective { yfov: 0.5 });
-    assert!(sc.select_camera(Some("nope")).unwrap_err().contains("persp"));
-    assert!(sc.select_camera(Some("7")).is_err());
+    let e = sc.select_camera(Some("nope")).unwrap_err();
+    assert_eq!(e, CameraError::NoSuchName { name: "nope".into(), available: vec!["persp".into(), "ortho".into()] });
+    assert_eq!(e.to_string(), "no camera named 'nope' (cameras: persp, ortho)");
+    let e = sc.select_camera(Some("7")).unwrap_err();
+    assert_eq!(e, CameraError::IndexOutOfRange { index: 7, count: 2 });
+    assert_eq!(e.to_string(), "camera index 7 out of range (scene has 2 cameras)");
     assert!(sc
         .lights
         .contains(&Light::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::new(10.0, 5.0, 5.0) }));
@@ -352,6 +356,110 @@ fn malformed_files_are_errors_naming_the_file() {
     assert!(load_scene(&p).unwrap_err().to_string().contains("short.gltf"));
     assert!(load_scene(&dir.path().join("missing.gltf")).is_err());
     assert!(load_scene(&dir.path().join("scene.fbx")).unwrap_err().to_string().contains("unknown scene format"));
+}
+
+#[test]
+fn a_missing_file_reads_no_such_file_in_every_format() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["missing.gltf", "missing.glb", "missing.obj", "MISSING.GLTF"] {
+        let p = dir.path().join(name);
+        let e = load_scene(&p).unwrap_err();
+        assert_eq!(e.to_string(), format!("{}: no such file", p.display()));
+        assert_eq!(e.path(), p.as_path());
+        match &e {
+            SceneError::Io { source, .. } => assert_eq!(source.kind(), std::io::ErrorKind::NotFound),
+            other => panic!("{name}: expected an I/O error, got {other:?}"),
+        }
+        assert!(std::error::Error::source(&e).is_some(), "the io::Error is kept as the source");
+    }
+    // The extension decides before the file is looked at.
+    let e = load_scene(&dir.path().join("missing.fbx")).unwrap_err();
+    assert!(matches!(e, SceneError::UnknownFormat { .. }), "{e:?}");
+}
+
+/// The quad with one change made to its JSON by `edit`, written as `name`; the load error.
+fn corrupt_quad(dir: &Path, name: &str, edit: impl FnOnce(&mut Value, &mut Vec<u8>)) -> (PathBuf, SceneError) {
+    let (mut doc, mut buf) = quad_gltf(json!([{"mesh": 0}]), default_material(), &[]);
+    edit(&mut doc, &mut buf);
+    let p = write_gltf(dir, name, doc, &buf);
+    let e = load_scene(&p).expect_err("a corrupt file must be refused");
+    let text = e.to_string();
+    assert!(text.starts_with(&p.display().to_string()) && !text.contains('\n'), "{text}");
+    (p, e)
+}
+
+#[test]
+fn an_accessor_running_past_its_buffer_view_is_an_error_naming_file_mesh_and_accessor() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, e) = corrupt_quad(dir.path(), "scene.gltf", |doc, _| {
+        doc["meshes"][0]["name"] = json!("Cube");
+        doc["accessors"][0]["count"] = json!(1_000_000_000u64);
+    });
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: mesh 0 (\"Cube\"), accessor 0: 1000000000 elements of 12 bytes run past the end of buffer view 0 \
+             (48 bytes)",
+            p.display()
+        )
+    );
+    match e {
+        SceneError::Accessor { mesh, mesh_name, accessor, problem, .. } => {
+            assert_eq!((mesh, mesh_name.as_deref(), accessor), (0, Some("Cube"), 0));
+            assert!(matches!(problem, AccessorProblem::PastViewEnd { count: 1_000_000_000, view: 0, .. }));
+        }
+        other => panic!("expected an accessor error, got {other:?}"),
+    }
+    // The indices (accessor 2) one element too long for their view; the mesh has no name.
+    let (p, e) = corrupt_quad(dir.path(), "indices.gltf", |doc, _| doc["accessors"][2]["count"] = json!(7));
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: mesh 0, accessor 2: 7 elements of 2 bytes run past the end of buffer view 2 (12 bytes)",
+            p.display()
+        )
+    );
+    // A stride wider than the view allows for four elements.
+    let (_, e) = corrupt_quad(dir.path(), "stride.gltf", |doc, _| doc["bufferViews"][1]["byteStride"] = json!(12));
+    let expected = "accessor 1: 4 elements of 8 bytes with stride 12 run past the end of buffer view 1 (32 bytes)";
+    assert!(e.to_string().ends_with(expected), "{e}");
+}
+
+#[test]
+fn other_structural_corruption_is_an_error_too() {
+    let dir = tempfile::tempdir().unwrap();
+    // An index naming vertex 7 of a 4-vertex quad.
+    let (p, e) = corrupt_quad(dir.path(), "index.gltf", |_, buf| buf[90..92].copy_from_slice(&7u16.to_le_bytes()));
+    assert_eq!(e.to_string(), format!("{}: mesh 0, accessor 2: index 7 is out of range (4 vertices)", p.display()));
+    let problem = AccessorProblem::IndexOutOfRange { index: 7, vertex_count: 4 };
+    assert!(matches!(e, SceneError::Accessor { accessor: 2, problem: ref found, .. } if *found == problem), "{e:?}");
+    // A buffer view past the end of its buffer.
+    let (p, e) = corrupt_quad(dir.path(), "view.gltf", |doc, _| doc["bufferViews"][2]["byteLength"] = json!(100));
+    assert_eq!(
+        e.to_string(),
+        format!("{}: buffer view 2 (bytes 80..180) runs past the end of buffer 0 (92 bytes)", p.display())
+    );
+    // NORMAL pointing at the VEC2 texture coordinates.
+    let (_, e) = corrupt_quad(dir.path(), "normal.gltf", |doc, _| {
+        doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(1);
+    });
+    assert!(e.to_string().ends_with("mesh 0, accessor 1: NORMAL is VEC2 of f32; rtd reads VEC3 of f32"), "{e}");
+    // TEXCOORD_0 with fewer elements than POSITION.
+    let (_, e) = corrupt_quad(dir.path(), "uv.gltf", |doc, _| doc["accessors"][1]["count"] = json!(3));
+    assert!(e.to_string().ends_with("mesh 0, accessor 1: TEXCOORD_0 has 3 elements but POSITION has 4"), "{e}");
+    // A count of zero.
+    let (_, e) = corrupt_quad(dir.path(), "zero.gltf", |doc, _| doc["accessors"][2]["count"] = json!(0));
+    assert!(e.to_string().ends_with("mesh 0, accessor 2: element count is 0"), "{e}");
+}
+
+#[test]
+fn points_and_lines_are_skipped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, buf) = quad_gltf(json!([{"mesh": 0}]), default_material(), &[]);
+    doc["meshes"][0]["primitives"][0]["mode"] = json!(0);
+    let s = load_scene(&write_gltf(dir.path(), "points.gltf", doc, &buf)).unwrap();
+    assert!(s.triangles.is_empty());
+    assert!(s.warnings.iter().any(|w| w.contains("skipped 1 primitives")), "{:?}", s.warnings);
 }
 
 #[test]

@@ -31,7 +31,7 @@ pub struct Camera {
     pub up: Vec3,
     /// Unit view direction (local −Z).
     pub forward: Vec3,
-    /// Projection.
+    /// How view directions map to the film: perspective or orthographic.
     pub projection: Projection,
 }
 

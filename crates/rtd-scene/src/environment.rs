@@ -38,7 +38,8 @@ impl Environment {
             return Ok(Environment::Constant(v));
         }
         let path = Path::new(arg);
-        let layers = rtd_image::read_exr(path).map_err(|e| SceneError::new(path, e))?;
+        let image_error = |source| SceneError::Image { path: path.to_path_buf(), source };
+        let layers = rtd_image::read_exr(path).map_err(image_error)?;
         let mut img = layers.rgb("").ok_or_else(|| SceneError::new(path, "EXR has no R,G,B channels"))?;
         for p in &mut img.pixels {
             *p = if p.is_finite() { p.max(Vec3::ZERO) } else { Vec3::ZERO };
@@ -107,6 +108,8 @@ mod tests {
         assert_eq!(Environment::parse("1,0.5,0").unwrap(), Environment::Constant(Vec3::new(1.0, 0.5, 0.0)));
         assert_eq!(Environment::parse("2").unwrap(), Environment::Constant(Vec3::splat(2.0)));
         assert!(Environment::parse("1,-1,0").is_err());
-        assert!(Environment::parse("missing.exr").is_err());
+        let e = Environment::parse("missing.exr").unwrap_err();
+        assert!(matches!(e, SceneError::Image { .. }), "{e:?}");
+        assert_eq!(e.to_string(), "missing.exr: no such file", "the path is named once");
     }
 }

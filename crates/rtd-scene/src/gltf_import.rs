@@ -4,6 +4,7 @@ use std::path::Path;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::image::Format;
 
+use crate::gltf_accessors::{check_buffer_views, check_indices, check_primitive, MeshSite};
 use crate::{
     AlphaMode, Camera, Light, Material, Projection, Scene, SceneError, Texture, TextureRef, Triangle, UvTransform, Wrap,
 };
@@ -19,23 +20,14 @@ pub const SUPPORTED_GLTF_EXTENSIONS: &[&str] = &[
 ];
 
 /// Loads a `.gltf` (external or embedded buffers) or `.glb` file into a flat [`Scene`].
+///
+/// A missing file reads `PATH: no such file` ([`SceneError::Io`]). A structurally corrupt file is
+/// refused: a buffer view past the end of its buffer ([`SceneError::BufferView`]), or an accessor
+/// of a triangle mesh whose data runs past its buffer view, whose type rtd cannot read, or whose
+/// indices name missing vertices ([`SceneError::Accessor`], naming the mesh and accessor).
+/// Points and lines primitives are skipped with a warning.
 pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
-    let err = |m: String| SceneError::new(path, m);
-    let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
-    // Check required extensions before validation so the error can name the extension.
-    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| err(format!("malformed glTF: {e}")))?;
-    if let Some(ext) = raw.document.extensions_required().find(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
-        return Err(err(format!(
-            "required extension {ext} is not supported (rtd supports: {})",
-            SUPPORTED_GLTF_EXTENSIONS.join(", ")
-        )));
-    }
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(&bytes).map_err(|e| err(format!("invalid glTF: {e}")))?;
-    let base = path.parent();
-    let buffers = gltf::import_buffers(&document, base, blob).map_err(|e| err(format!("cannot load buffers: {e}")))?;
-    let images = gltf::import_images(&document, base, &buffers).map_err(|e| err(format!("cannot load images: {e}")))?;
-
+    let GltfFile { document, buffers, images } = read_gltf(path)?;
     let mut scene = Scene::default();
     for ext in document.extensions_used().filter(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
         scene.warnings.push(format!("ignoring unsupported optional extension {ext}"));
@@ -49,8 +41,64 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     scene.materials.push(Material::default());
 
     let gscene = document.default_scene().or_else(|| document.scenes().next());
-    let mut skipped_primitives = 0usize;
-    if let Some(gscene) = gscene {
+    let skipped_primitives = match gscene {
+        Some(gscene) => {
+            let mut nodes = NodeVisitor { path, buffers: &buffers, default_material, skipped_primitives: 0 };
+            nodes.visit(&gscene, &mut scene)?;
+            nodes.skipped_primitives
+        }
+        None => 0,
+    };
+    scene.textures = textures.into_textures();
+    if skipped_primitives > 0 {
+        scene
+            .warnings
+            .push(format!("skipped {skipped_primitives} primitives that are not triangles or have no positions"));
+    }
+    scene.finish_load();
+    Ok(scene)
+}
+
+/// A parsed and validated glTF document with its buffers and images loaded.
+struct GltfFile {
+    document: gltf::Document,
+    buffers: Vec<gltf::buffer::Data>,
+    images: Vec<gltf::image::Data>,
+}
+
+/// Reads, parses and validates a glTF file and loads its buffers and images.
+fn read_gltf(path: &Path) -> Result<GltfFile, SceneError> {
+    let gltf_err = |stage: &'static str| move |source| SceneError::Gltf { path: path.to_path_buf(), stage, source };
+    let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+    // Check required extensions before validation so the error can name the extension.
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err("malformed glTF"))?;
+    if let Some(ext) = raw.document.extensions_required().find(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
+        return Err(SceneError::UnsupportedGltfExtension {
+            path: path.to_path_buf(),
+            extension: ext.to_string(),
+            supported: SUPPORTED_GLTF_EXTENSIONS,
+        });
+    }
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(&bytes).map_err(gltf_err("invalid glTF"))?;
+    check_buffer_views(&document, path)?;
+    let base = path.parent();
+    let buffers = gltf::import_buffers(&document, base, blob).map_err(gltf_err("cannot load buffers"))?;
+    let images = gltf::import_images(&document, base, &buffers).map_err(gltf_err("cannot load images"))?;
+    Ok(GltfFile { document, buffers, images })
+}
+
+/// Walks a glTF scene's node tree, adding meshes, cameras and lights in world space.
+struct NodeVisitor<'a> {
+    path: &'a Path,
+    buffers: &'a [gltf::buffer::Data],
+    default_material: u32,
+    /// Primitives skipped because they are points or lines or have no positions.
+    skipped_primitives: usize,
+}
+
+impl NodeVisitor<'_> {
+    /// Visits the scene's nodes depth-first in file order (the order cameras are numbered in).
+    fn visit(&mut self, gscene: &gltf::Scene, scene: &mut Scene) -> Result<(), SceneError> {
         let mut stack: Vec<(gltf::Node, Mat4)> = gscene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
         stack.reverse();
         while let Some((node, parent)) = stack.pop() {
@@ -60,23 +108,15 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
                 continue;
             }
             if let Some(mesh) = node.mesh() {
+                let site = MeshSite { path: self.path, index: mesh.index(), name: mesh.name() };
                 for prim in mesh.primitives() {
-                    if !add_primitive(&prim, world, &buffers, default_material, &mut scene) {
-                        skipped_primitives += 1;
+                    if !add_primitive(&prim, site, world, self.buffers, self.default_material, scene)? {
+                        self.skipped_primitives += 1;
                     }
                 }
             }
             if let Some(cam) = node.camera() {
-                let name = cam
-                    .name()
-                    .or(node.name())
-                    .map(str::to_string)
-                    .unwrap_or_else(|| format!("camera{}", scene.cameras.len()));
-                let projection = match cam.projection() {
-                    gltf::camera::Projection::Perspective(p) => Projection::Perspective { yfov: p.yfov() },
-                    gltf::camera::Projection::Orthographic(o) => Projection::Orthographic { ymag: o.ymag().abs() },
-                };
-                scene.cameras.push(Camera::from_matrix(name, world, projection));
+                scene.cameras.push(convert_camera(&cam, &node, world, scene.cameras.len()));
             }
             if let Some(light) = node.light() {
                 scene.lights.push(convert_light(&light, world));
@@ -87,15 +127,18 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
                 stack.push((child, world));
             }
         }
+        Ok(())
     }
-    scene.textures = textures.into_textures();
-    if skipped_primitives > 0 {
-        scene
-            .warnings
-            .push(format!("skipped {skipped_primitives} primitives that are not triangles or have no positions"));
-    }
-    scene.finish_load();
-    Ok(scene)
+}
+
+/// A camera node's camera; unnamed cameras take the node's name, else `camera{number}`.
+fn convert_camera(cam: &gltf::Camera, node: &gltf::Node, world: Mat4, number: usize) -> Camera {
+    let name = cam.name().or(node.name()).map(str::to_string).unwrap_or_else(|| format!("camera{number}"));
+    let projection = match cam.projection() {
+        gltf::camera::Projection::Perspective(p) => Projection::Perspective { yfov: p.yfov() },
+        gltf::camera::Projection::Orthographic(o) => Projection::Orthographic { ymag: o.ymag().abs() },
+    };
+    Camera::from_matrix(name, world, projection)
 }
 
 /// Decodes each (texture, colour space) pair once.
@@ -265,18 +308,24 @@ fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light
     }
 }
 
-/// Adds one primitive's triangles in world space. Returns false if it was skipped.
+/// Adds one primitive's triangles in world space. Returns `Ok(false)` for a primitive skipped
+/// as unusual (points or lines, or no positions), and an error for a corrupt one.
 fn add_primitive(
     prim: &gltf::Primitive,
+    site: MeshSite,
     world: Mat4,
     buffers: &[gltf::buffer::Data],
     default_material: u32,
     scene: &mut Scene,
-) -> bool {
+) -> Result<bool, SceneError> {
     use gltf::mesh::Mode;
+    if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+        return Ok(false);
+    }
+    check_primitive(prim, site)?;
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
     let Some(positions) = reader.read_positions() else {
-        return false;
+        return Ok(false);
     };
     let positions: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
     let m3 = Mat3::from_mat4(world);
@@ -291,7 +340,29 @@ fn add_primitive(
         Some(i) => i.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
     };
-    let tris: Vec<[u32; 3]> = match prim.mode() {
+    check_indices(prim, &indices, positions.len(), site)?;
+    // A mirroring transform flips winding; swap two vertices so front faces stay front.
+    let mirrored = m3.determinant() < 0.0;
+    let material = prim.material().index().map(|i| i as u32).unwrap_or(default_material);
+    for mut t in triangles(prim.mode(), &indices) {
+        if mirrored {
+            t.swap(1, 2);
+        }
+        scene.push_triangle(Triangle {
+            p: t.map(|i| positions[i as usize]),
+            n: t.map(|i| attribute(&normals, i, Vec3::ZERO)),
+            uv: t.map(|i| attribute(&uvs, i, Vec2::ZERO)),
+            tangent: t.map(|i| attribute(&tangents, i, Vec4::ZERO)),
+            material,
+        });
+    }
+    Ok(true)
+}
+
+/// The vertex triples of a triangle list, strip or fan; none for points and lines.
+fn triangles(mode: gltf::mesh::Mode, indices: &[u32]) -> Vec<[u32; 3]> {
+    use gltf::mesh::Mode;
+    match mode {
         Mode::Triangles => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         // Strips alternate winding; fans share the first vertex.
         Mode::TriangleStrip => (2..indices.len())
@@ -304,32 +375,11 @@ fn add_primitive(
             })
             .collect(),
         Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
-        _ => return false,
-    };
-    // A mirroring transform flips winding; swap two vertices so front faces stay front.
-    let mirrored = m3.determinant() < 0.0;
-    let material = prim.material().index().map(|i| i as u32).unwrap_or(default_material);
-    let n = positions.len();
-    for mut t in tris {
-        if t.iter().any(|&i| i as usize >= n) {
-            scene.skipped_nonfinite += 1;
-            continue;
-        }
-        if mirrored {
-            t.swap(1, 2);
-        }
-        scene.push_triangle(Triangle {
-            p: t.map(|i| positions[i as usize]),
-            n: t.map(|i| attribute(&normals, i, Vec3::ZERO)),
-            uv: t.map(|i| attribute(&uvs, i, Vec2::ZERO)),
-            tangent: t.map(|i| attribute(&tangents, i, Vec4::ZERO)),
-            material,
-        });
+        _ => Vec::new(),
     }
-    true
 }
 
-/// Vertex `i` of an optional attribute array (arrays shorter than the positions read as `default`).
+/// Vertex `i` of an optional attribute array, or `default` where the primitive has none.
 fn attribute<T: Copy>(values: &Option<Vec<T>>, i: u32, default: T) -> T {
     values.as_ref().and_then(|v| v.get(i as usize).copied()).unwrap_or(default)
 }

@@ -3,12 +3,17 @@
 //! glTF 2.0 (`.gltf`, `.glb`) and OBJ/MTL files are flattened into a [`Scene`]: world-space
 //! triangles with per-vertex shading attributes, glTF metallic-roughness [`Material`]s,
 //! linear-float [`Texture`]s, [`Camera`]s, punctual [`Light`]s and an [`Environment`].
-//! Bad input gives a [`SceneError`] naming the file and the problem; recoverable problems
-//! (skipped degenerate triangles, a missing camera) become [`Scene::warnings`].
+//! Bad input gives a [`SceneError`] naming the file and the problem (a missing file reads
+//! `PATH: no such file`; a corrupt glTF accessor names its mesh and accessor); recoverable
+//! problems (skipped degenerate triangles, a missing camera) become [`Scene::warnings`].
+#![warn(missing_docs)]
 
+mod aabb;
 mod camera;
+mod camera_choice;
 mod environment;
 mod error;
+mod gltf_accessors;
 mod gltf_import;
 mod light;
 mod material;
@@ -16,24 +21,28 @@ mod obj_import;
 mod scene;
 mod texture;
 
+pub use aabb::Aabb;
 pub use camera::{Camera, Projection};
+pub use camera_choice::CameraError;
 pub use environment::Environment;
-pub use error::SceneError;
+pub use error::{AccessorProblem, SceneError};
 pub use gltf_import::{load_gltf, SUPPORTED_GLTF_EXTENSIONS};
 pub use light::Light;
 pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TextureRef, UvTransform};
 pub use obj_import::load_obj;
-pub use scene::{Aabb, Scene, Triangle};
+pub use scene::{Scene, Triangle};
 pub use texture::{FootprintFilter, Texture, Wrap};
 
 use std::path::Path;
 
-/// Loads a scene, choosing the importer by extension (`.gltf`, `.glb`, `.obj`).
+/// Loads a scene, choosing the importer by extension (`.gltf`, `.glb`, `.obj`, in any case).
+/// A missing file is a [`SceneError::Io`] whose message is `PATH: no such file`; an unknown
+/// extension is a [`SceneError::UnknownFormat`].
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("gltf") | Some("glb") => load_gltf(path),
         Some("obj") => load_obj(path),
-        _ => Err(SceneError::new(path, "unknown scene format (use .gltf, .glb or .obj)")),
+        _ => Err(SceneError::UnknownFormat { path: path.to_path_buf() }),
     }
 }

@@ -10,9 +10,7 @@ use crate::{Material, Scene, SceneError, Texture, TextureRef, Triangle, Wrap};
 /// (GGX α = √(2/(Ns+2))); black `Kd` with non-zero `Ks` → a metal of colour `Ks`;
 /// `Ke` → emission; `illum` 4/6/7/9, `d` < 1 or `Tr` > 0 → glass with IOR `Ni`.
 pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
-    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, mtl) =
-        tobj::load_obj(path, &opts).map_err(|e| SceneError::new(path, format!("cannot load OBJ: {e}")))?;
+    let (models, mtl) = parse_obj(path)?;
     let mut scene = Scene::default();
     let dir = path.parent().unwrap_or(Path::new("."));
     match mtl {
@@ -74,6 +72,25 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     }
     scene.finish_load();
     Ok(scene)
+}
+
+/// An OBJ file's models and, separately, the outcome of loading its materials.
+type ObjContents = (Vec<tobj::Model>, Result<Vec<tobj::Material>, tobj::LoadError>);
+
+/// Parses the OBJ file and its MTL libraries (resolved next to it, as `tobj::load_obj` does).
+/// Opening the file ourselves keeps the I/O error, so that a missing file reads `PATH: no such file`.
+fn parse_obj(path: &Path) -> Result<ObjContents, SceneError> {
+    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
+    let mut reader = std::io::BufReader::new(file);
+    tobj::load_obj_buf(&mut reader, &opts, |mtl| {
+        let full = match path.parent() {
+            Some(parent) => parent.join(mtl),
+            None => mtl.to_path_buf(),
+        };
+        tobj::load_mtl(full)
+    })
+    .map_err(|source| SceneError::Obj { path: path.to_path_buf(), source })
 }
 
 fn parse_vec3(s: Option<&String>) -> Option<Vec3> {

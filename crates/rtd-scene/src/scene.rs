@@ -1,38 +1,6 @@
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::{Camera, Environment, Light, Material, Texture};
-
-/// An axis-aligned bounding box.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Aabb {
-    /// Minimum corner.
-    pub min: Vec3,
-    /// Maximum corner.
-    pub max: Vec3,
-}
-
-impl Aabb {
-    /// The empty box (min = +∞, max = −∞).
-    pub const EMPTY: Aabb = Aabb { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
-
-    /// Grows the box to contain `p`.
-    pub fn grow(&mut self, p: Vec3) {
-        self.min = self.min.min(p);
-        self.max = self.max.max(p);
-    }
-    /// Centre point.
-    pub fn center(&self) -> Vec3 {
-        (self.min + self.max) * 0.5
-    }
-    /// max − min.
-    pub fn diagonal(&self) -> Vec3 {
-        self.max - self.min
-    }
-    /// True if nothing was added.
-    pub fn is_empty(&self) -> bool {
-        self.min.x > self.max.x
-    }
-}
+use crate::{Aabb, Camera, Environment, Light, Material, Texture};
 
 /// One world-space triangle with per-vertex shading attributes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,7 +35,7 @@ impl Triangle {
             n
         }
     }
-    /// Area.
+    /// The triangle's area.
     pub fn area(&self) -> f32 {
         self.cross().length() * 0.5
     }
@@ -88,7 +56,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Environment lighting (black unless set by the caller).
     pub environment: Environment,
-    /// Triangles dropped at load because a position was NaN/Inf.
+    /// Triangles dropped at load because a position was NaN/Inf (or, in an OBJ file, a vertex
+    /// index was out of range).
     pub skipped_nonfinite: usize,
     /// Triangles dropped at load because they had zero area.
     pub skipped_degenerate: usize,
@@ -97,8 +66,9 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Adds a triangle after validation. Triangles with non-finite positions or zero area are
-    /// counted and dropped; missing or broken normals become the flat normal.
+    /// Adds a triangle after validation and returns whether it was kept. Triangles with non-finite
+    /// positions or zero area are counted and dropped; missing or broken normals become the flat
+    /// normal, non-finite texture coordinates zero and non-finite tangents all zero.
     pub fn push_triangle(&mut self, mut t: Triangle) -> bool {
         if !t.p.iter().all(|p| p.is_finite()) {
             self.skipped_nonfinite += 1;
@@ -154,40 +124,6 @@ impl Scene {
     /// Number of triangles whose material emits.
     pub fn emissive_triangle_count(&self) -> usize {
         self.triangles.iter().filter(|t| self.materials[t.material as usize].is_emissive()).count()
-    }
-
-    /// The camera chosen by `--camera NAME|INDEX` (index in depth-first node order), else the first
-    /// perspective camera, else the first camera, else an automatic one that frames the scene
-    /// (with a warning). Errors name the cameras that exist.
-    pub fn select_camera(&self, choice: Option<&str>) -> Result<(Camera, Option<String>), String> {
-        match choice {
-            Some(c) => {
-                if let Ok(i) = c.parse::<usize>() {
-                    return self.cameras.get(i).cloned().map(|c| (c, None)).ok_or_else(|| {
-                        format!("camera index {i} out of range (scene has {} cameras)", self.cameras.len())
-                    });
-                }
-                self.cameras.iter().find(|cam| cam.name == c).cloned().map(|c| (c, None)).ok_or_else(|| {
-                    let names: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
-                    format!(
-                        "no camera named '{c}' (cameras: {})",
-                        if names.is_empty() { "none".into() } else { names.join(", ") }
-                    )
-                })
-            }
-            None => match self
-                .cameras
-                .iter()
-                .find(|c| matches!(c.projection, crate::Projection::Perspective { .. }))
-                .or(self.cameras.first())
-            {
-                Some(c) => Ok((c.clone(), None)),
-                None => Ok((
-                    Camera::framing(&self.bounds()),
-                    Some("scene has no camera; using an automatic camera framing its bounds".into()),
-                )),
-            },
-        }
     }
 
     /// A copy with every position, camera and light moved by `p' = p·scale + offset`.
