@@ -12,11 +12,11 @@ use crate::model::{DenoiserNet, InceptionBlock};
 /// A C×H×W feature map: one plane per channel.
 #[derive(Clone, Debug)]
 pub struct Map {
-    /// Width.
+    /// Width in pixels.
     pub w: usize,
-    /// Height.
+    /// Height in pixels.
     pub h: usize,
-    /// Channels.
+    /// Number of channels (planes).
     pub c: usize,
     /// Values, index (channel·h + y)·w + x.
     pub data: Vec<f32>,
