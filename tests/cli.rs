@@ -124,7 +124,13 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["frobnicate"]), "frobnicate");
     // Missing arguments are named, not just announced.
     assert_fails(&rtd(&["render", "-o", o]), "<SCENE>");
-    assert_fails(&rtd(&["train", "--data", o, "-o", o, "--grow", "64"]), "--init");
+    assert_fails(&rtd(&["train", "-o", o]), "--data <DATA>");
+    // The experiment harnesses removed in the architecture clean-up are unknown flags now.
+    for removed in [vec!["--grow", "64"], vec!["--gradient-loss", "0.5"], vec!["--no-depth"], vec!["--variant", "unet"]] {
+        let mut args = vec!["train", "--data", o, "-o", o];
+        args.extend_from_slice(&removed);
+        assert_fails(&rtd(&args), &format!("unexpected argument '{}'", removed[0]));
+    }
     assert_fails(&rtd(&["train", "--data", o, "-o", o, "--exposure-key", "0"]), "--exposure-key");
     // Refreshing a dataset's guides keeps its own generation settings.
     for (flag, value) in
@@ -133,6 +139,32 @@ fn bad_arguments_fail_cleanly() {
         assert_fails(&rtd(&["datagen", "-o", o, "--refresh-guides", flag, value]), flag);
     }
     assert!(files_in(dir.path()).is_empty(), "a failed command left files: {:?}", files_in(dir.path()));
+}
+
+/// `rtd train` with crops the dataset's views cannot give, and `rtd bench validation` at a
+/// sample count they were not rendered at: one error line each, and no run or report written.
+#[test]
+fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let options = rtd::train::dataset::DatasetOptions::default()
+        .scenes(3)
+        .views_per_scene(1)
+        .size(24)
+        .reference_spp(16)
+        .validation_every(3);
+    let manifest = rtd::train::dataset::generate_dataset(&data, &options, &rtd::train::Quiet).unwrap();
+    assert!(manifest.views.iter().any(|v| !v.validation), "the dataset needs a training view");
+    let (run, report) = (dir.path().join("run"), dir.path().join("report"));
+    let (d, r) = (data.to_str().unwrap(), run.to_str().unwrap());
+    // Crops larger than the 24² views, or not a multiple of the U-Net's 4-px alignment.
+    let too_large = rtd(&["train", "--data", d, "-o", r, "--crop", "32", "-q"]);
+    assert_fails(&too_large, "crop side 32 px is larger than the dataset's 24x24 px views");
+    assert_fails(&rtd(&["train", "--data", d, "-o", r, "--crop", "18", "-q"]), "not a positive multiple of 4");
+    assert!(!run.exists(), "a refused run wrote {}", run.display());
+    let bench = rtd(&["bench", "validation", "--data", d, "--spp", "3", "-o", report.to_str().unwrap(), "-q"]);
+    assert_fails(&bench, "has no noisy render at 3 spp (it has 1, 2, 4, 8, 16, 32, 64 spp)");
+    assert!(!report.join("report.json").exists() && !report.join("report.md").exists());
 }
 
 #[test]

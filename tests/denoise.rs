@@ -140,28 +140,28 @@ fn the_shipped_model_demodulates_by_albedo_and_multiplies_it_back() {
 }
 
 #[test]
-fn a_model_without_depth_ignores_the_depth_layer() {
-    // The shipped weights under a config that leaves depth out: the output no longer moves
-    // with the depth layer (it does under the shipped config), and it still moves with AO.
-    let root = common::repo_path("models");
-    let json = std::fs::read_to_string(root.join("rtd-denoiser.json")).unwrap();
-    let weights = std::fs::read(root.join("rtd-denoiser.bpk")).unwrap();
-    let mut config: serde_json::Value = serde_json::from_str(&json).unwrap();
-    let reads = |c: &serde_json::Value| Denoiser::from_bytes(&c.to_string(), weights.clone(), "m").unwrap();
-    config["depth"] = serde_json::Value::Bool(true);
-    let with = reads(&config);
-    config["depth"] = serde_json::Value::Bool(false);
-    let without = reads(&config);
-    assert!(with.config().reads_depth() && !without.config().reads_depth());
+fn the_shipped_model_reads_depth_and_ao_and_no_depth_models_are_refused() {
+    // The output moves with the depth layer and with AO: the encoding fills both planes.
+    let m = model();
     let (color, g) = cornell_inputs(40, 32);
     let far: Vec<f32> = g.depth.iter().map(|d| d * 3.0 + 1.0).collect();
     let dark: Vec<f32> = g.ao.iter().map(|a| a * 0.5).collect();
     let an = DenoiseInput::new(&color, &g.guide).albedo_normal(&g.albedo, &g.normal);
-    let input = |ao, depth| an.ao_depth(ao, depth);
-    let (a, b) = (input(&g.ao, &g.depth), input(&g.ao, &far));
-    assert_eq!(without.denoise(&a).unwrap().pixels, without.denoise(&b).unwrap().pixels);
-    assert_ne!(with.denoise(&a).unwrap().pixels, with.denoise(&b).unwrap().pixels);
-    assert_ne!(without.denoise(&a).unwrap().pixels, without.denoise(&input(&dark, &g.depth)).unwrap().pixels);
+    let out = |ao: &[f32], depth: &[f32]| m.denoise(&an.ao_depth(ao, depth)).unwrap().pixels;
+    let base = out(&g.ao, &g.depth);
+    assert_ne!(base, out(&g.ao, &far));
+    assert_ne!(base, out(&dark, &g.depth));
+    // A model whose config says it was trained without depth (the removed `rtd train
+    // --no-depth`) is refused rather than run as if it read depth.
+    let root = common::repo_path("models");
+    let json = std::fs::read_to_string(root.join("rtd-denoiser.json")).unwrap();
+    let weights = std::fs::read(root.join("rtd-denoiser.bpk")).unwrap();
+    let mut config: serde_json::Value = serde_json::from_str(&json).unwrap();
+    config["depth"] = serde_json::Value::Bool(false);
+    let e = Denoiser::from_bytes(&config.to_string(), weights.clone(), "m").err().expect("refused").to_string();
+    assert!(e.contains("--no-depth"), "{e}");
+    config["depth"] = serde_json::Value::Bool(true);
+    assert!(Denoiser::from_bytes(&config.to_string(), weights, "m").is_ok());
 }
 
 #[test]

@@ -1,13 +1,13 @@
 //! Dataset generation and training, end to end on tiny sizes: resumable datagen with a
 //! by-scene split, `rtd train --quick` lowering its loss, deterministic and resumable training,
-//! fine-tuning and growing a trained network.
+//! fine-tuning a trained network, and options refused before anything is written.
 
 use std::path::Path;
 use std::process::Command;
 
-use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split};
-use rtd::train::train::{train, GrowLevel, TrainOptions};
-use rtd::train::Quiet;
+use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split, ViewRecord, NOISY_SPP};
+use rtd::train::train::{train, TrainOptions};
+use rtd::train::{Quiet, TrainError};
 
 fn tiny_dataset(dir: &Path) -> Manifest {
     let options = DatasetOptions::default().scenes(3).views_per_scene(1).size(24).reference_spp(16).validation_every(3);
@@ -164,7 +164,7 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     assert!(f.losses.len() == a.losses.len() && f.losses != a.losses);
     let absent = options.clone().spp_levels(Some(vec![3]));
     let err = train(&data, &dir.path().join("s"), &absent, false, &Quiet).unwrap_err().to_string();
-    assert!(err.contains("manifest.json") && err.contains("sample counts"), "{err}");
+    assert!(err.starts_with(&format!("{}: ", data.display())) && err.contains("sample counts"), "{err}");
     // Also when only some are absent, and before the run directory is made.
     let partly = options.clone().spp_levels(Some(vec![3, 8]));
     let err = train(&data, &dir.path().join("p"), &partly, false, &Quiet).unwrap_err().to_string();
@@ -180,26 +180,62 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     assert!(diff(&run("a"), &run("b")) < 1e-4, "fine-tuning did not start from the given weights");
     assert!(diff(&run("a"), &run("c")) > 1e-3, "a fresh network should differ");
     // A model without demodulation may seed a demodulating run of the same shape, which then
-    // says so in its config.
-    // So may it seed one that leaves depth out or takes another exposure key.
-    let encoding = tiny_config().with_demodulate(Some(true)).with_depth(Some(false)).with_exposure_key(Some(1.44));
+    // says so in its config; so may it seed one that takes another exposure key.
+    let encoding = tiny_config().with_demodulate(Some(true)).with_exposure_key(Some(1.44));
     train(&data, &dir.path().join("e"), &tuned.clone().config(encoding), false, &Quiet).unwrap();
     let cfg = std::fs::read_to_string(dir.path().join("e/model.json")).unwrap();
-    let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
-    assert!(cfg.demodulates() && !cfg.reads_depth() && cfg.exposure_key() == 1.44);
-    // Grown by a coarser level (`rtd train --grow`): a three-level network that starts out
-    // computing what a does.
-    let grown_config = rtd::denoise::grow::grown_config(&tiny_config(), 8, 1);
-    let grown = tuned.clone().config(grown_config.clone()).grow(Some(GrowLevel { channels: 8, blocks: 1 }));
-    train(&data, &dir.path().join("g"), &grown, false, &Quiet).unwrap();
-    let cfg = std::fs::read_to_string(dir.path().join("g/model.json")).unwrap();
-    let cfg: rtd::denoise::DenoiserConfig = serde_json::from_str(&cfg).unwrap();
-    assert_eq!((cfg.channels.len(), &cfg), (3, &grown_config));
-    assert!(diff(&run("a"), &run("g")) < 1e-4, "the grown network did not start from a's function");
+    let cfg = rtd::denoise::DenoiserConfig::from_json(&cfg).unwrap();
+    assert!(cfg.demodulates() && cfg.exposure_key() == 1.44);
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();
     assert!(err.contains("model.json") && err.contains("another network"), "{err}");
+}
+
+/// A dataset directory holding only a manifest that lists a training and a validation view of
+/// `size`² pixels which were never rendered: enough for the option checks, which come before
+/// any view is read.
+fn manifest_only(dir: &Path, size: u32) {
+    let view = |scene: u64, validation: bool| ViewRecord {
+        file: format!("views/scene{scene:04}_v0.exr"),
+        scene,
+        view: 0,
+        layout: rtd::train::scenegen::Layout::ClosedRoom,
+        validation,
+        reference_spp: 16,
+        reference_relmse: 0.0,
+        seconds: 0.0,
+    };
+    let manifest = Manifest {
+        options: DatasetOptions::default().size(size),
+        noisy_spp: NOISY_SPP.to_vec(),
+        views: vec![view(0, false), view(5, true)],
+        rejected: vec![],
+    };
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("manifest.json"), serde_json::to_string(&manifest).unwrap()).unwrap();
+}
+
+#[test]
+fn options_the_dataset_cannot_serve_are_refused_before_anything_is_read_or_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, out) = (dir.path().join("data"), dir.path().join("run"));
+    manifest_only(&data, 24);
+    let refusal = |options: &TrainOptions| match train(&data, &out, options, false, &Quiet) {
+        Err(e @ TrainError::InvalidOptions { .. }) => e.to_string(),
+        Err(e) => panic!("expected InvalidOptions, got {e}"),
+        Ok(_) => panic!("trained with {options:?}"),
+    };
+    // The U-Net aligns to 4 px: 32 is aligned but larger than the views, 18 smaller but not aligned.
+    let too_large = "crop side 32 px is larger than the dataset's 24x24 px views";
+    for (crop, why) in [(32, too_large), (18, "not a positive multiple of 4")] {
+        let e = refusal(&TrainOptions::default().batch(2, crop));
+        assert!(e.starts_with(&format!("{}: ", data.display())) && e.contains(why) && !e.contains('\n'), "{e}");
+        assert!(!out.exists(), "a refused run made {}", out.display());
+    }
+    // Options within those limits get as far as reading the views, which this dataset lacks.
+    let e = train(&data, &out, &TrainOptions::default().batch(2, 24), false, &Quiet).unwrap_err().to_string();
+    assert!(e.contains("scene0000_v0.exr") && e.contains("no such file"), "{e}");
 }
 
 /// `refresh_guides` re-renders exactly the guide layers of every view and keeps the rest.

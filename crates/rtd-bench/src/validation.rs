@@ -97,7 +97,7 @@ pub fn tune_filter(views: &[View], spp: u32) -> Result<GuidedFilter, BenchError>
             let f = GuidedFilter::default().sigma_color(sc).sigma_guide(sg);
             let mut total = 0.0;
             for v in views {
-                total += rtd_image::metrics::psnr(&f.filter(&v.input(spp))?, &v.reference, METRIC_BORDER);
+                total += rtd_image::metrics::psnr(&f.filter(&v.input(spp)?)?, &v.reference, METRIC_BORDER);
             }
             if total > best.0 {
                 best = (total, f);
@@ -127,7 +127,7 @@ pub fn validation_report(
     progress.inc(1);
     let mut views = vec![];
     for v in &val {
-        let input = v.input(spp);
+        let input = v.input(spp)?;
         let color = input.color;
         let guide_only = DenoiseInput::new(color, &v.guide);
         let ablation = DenoiseInput::new(color, color);

@@ -12,11 +12,11 @@ use crate::model::{DenoiserNet, InceptionBlock};
 /// A C×H×W feature map: one plane per channel.
 #[derive(Clone, Debug)]
 pub struct Map {
-    /// Width.
+    /// Width in pixels.
     pub w: usize,
-    /// Height.
+    /// Height in pixels.
     pub h: usize,
-    /// Channels.
+    /// Number of channels (planes).
     pub c: usize,
     /// Values, index (channel·h + y)·w + x.
     pub data: Vec<f32>,
@@ -375,7 +375,6 @@ impl FastDecoder {
 pub struct FastNet {
     stem: Conv,
     encoders: Vec<FastBlock>,
-    level_blocks: Vec<Vec<FastBlock>>,
     bottleneck: Vec<FastBlock>,
     decoders: Vec<FastDecoder>,
     output: Conv,
@@ -387,7 +386,6 @@ impl FastNet {
         FastNet {
             stem: Conv::from(&net.stem),
             encoders: net.encoders.iter().map(FastBlock::from).collect(),
-            level_blocks: net.level_blocks.iter().map(|l| l.iter().map(FastBlock::from).collect()).collect(),
             bottleneck: net.bottleneck.iter().map(FastBlock::from).collect(),
             decoders: net.decoders.iter().map(FastDecoder::from).collect(),
             output: Conv::from(&net.output),
@@ -407,10 +405,6 @@ impl FastNet {
             }
             let next = enc.forward(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
-            for b in self.level_blocks.get(l).into_iter().flatten() {
-                let next = b.forward(&y, scratch);
-                scratch.recycle(std::mem::replace(&mut y, next));
-            }
         }
         for b in &self.bottleneck {
             let next = b.forward(&y, scratch);
@@ -441,7 +435,7 @@ mod tests {
         let configs = [
             DenoiserConfig::new(vec![8, 12, 16]).with_bottleneck_blocks(2),
             DenoiserConfig::new(vec![8]).with_bottleneck_blocks(1),
-            DenoiserConfig::new(vec![8, 12, 16]).with_level_blocks(Some(vec![0, 2])),
+            DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(0),
         ];
         // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row.
         for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44)] {

@@ -11,7 +11,8 @@ use serde::{Deserialize, Serialize};
 use crate::encode::{auto_exposure, decode_color, encode_color, DenoiseInput};
 use crate::DenoiseError;
 
-/// Parameters of the guided à-trous filter, builder style.
+/// Parameters of the guided à-trous filter. [`GuidedFilter::default`] holds the tuned values;
+/// the chained setters below change one at a time.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GuidedFilter {
     /// À-trous iterations (kernel footprint 4·2^n + 1 pixels).

@@ -98,7 +98,7 @@ impl Dihedral {
 impl Denoiser {
     /// Builds a denoiser from a config (JSON) and burnpack weights; `name` is shown in reports.
     pub fn from_bytes(config_json: &str, weights: Vec<u8>, name: &str) -> Result<Self, DenoiseError> {
-        let config: DenoiserConfig = serde_json::from_str(config_json)
+        let config = DenoiserConfig::from_json(config_json)
             .map_err(|e| DenoiseError::Model(format!("{name}: bad model config: {e}")))?;
         if config.input_channels != INPUT_CHANNELS {
             return Err(DenoiseError::Model(format!(

@@ -1,12 +1,13 @@
 //! rtd's learned denoiser: a U-Net of inception modules ([`model`]) that takes a noisy HDR
 //! render plus its guide pass and returns a clean image, HDR input encoding ([`encode`]),
-//! tiled inference ([`infer`]), growing a trained network by a level ([`grow`]) and a non-learned
-//! guided filter baseline ([`filter`]).
+//! tiled inference ([`infer`]) with a fast CPU path ([`fast`]), and a non-learned guided filter
+//! baseline ([`filter`]).
+
+#![warn(missing_docs)]
 
 pub mod encode;
 pub mod fast;
 pub mod filter;
-pub mod grow;
 pub mod infer;
 pub mod model;
 pub mod planes;

@@ -16,15 +16,14 @@ use crate::planes::INPUT_CHANNELS;
 /// self-describing.
 #[derive(Config, Debug, PartialEq)]
 pub struct DenoiserConfig {
-    /// Channels at each resolution level, full resolution first. One entry = single scale.
+    /// Channels at each resolution level, full resolution first; each level below the first
+    /// halves the resolution, so the image sides must be multiples of
+    /// [`DenoiserConfig::alignment`].
     pub channels: Vec<usize>,
-    /// Inception blocks at the coarsest level.
+    /// Inception blocks after the encoder at the coarsest level (the bottleneck), with
+    /// dilations 2, 4, 2, ...
     #[config(default = 2)]
     pub bottleneck_blocks: usize,
-    /// Inception blocks after the encoder at each finer level, full resolution first (one
-    /// entry per level but the coarsest). Absent (older model files) means none. A network
-    /// grown by [`crate::grow::add_level`] keeps its old bottleneck here.
-    pub level_blocks: Option<Vec<usize>>,
     /// Length k of the 1×k then k×1 branch.
     #[config(default = 5)]
     pub prong: usize,
@@ -36,10 +35,6 @@ pub struct DenoiserConfig {
     /// lighting and the texture is multiplied back exactly. Absent (older model files) means
     /// no; read it through [`DenoiserConfig::demodulates`].
     pub demodulate: Option<bool>,
-    /// Whether the depth layer is read. Absent (older model files) means yes; a model made with
-    /// `rtd train --no-depth` leaves the depth plane at 0 and reads AO alone (models/README.md
-    /// has what that measured). Read it through [`DenoiserConfig::reads_depth`].
-    pub depth: Option<bool>,
     /// The value auto-exposure maps the log-average luminance to before the log transfer
     /// ln(1 + x · exposure): a larger key gives dark regions more of the transfer's range (and
     /// of the training loss). Absent (older model files) means
@@ -53,19 +48,9 @@ impl DenoiserConfig {
         DenoiserConfig::new(vec![24, 48, 64])
     }
 
-    /// The single-scale variant: inception blocks at full resolution only, with dilations.
-    pub fn single_scale() -> Self {
-        DenoiserConfig::new(vec![32]).with_bottleneck_blocks(4)
-    }
-
     /// Whether colour is demodulated by albedo (see the `demodulate` field).
     pub fn demodulates(&self) -> bool {
         self.demodulate.unwrap_or(false)
-    }
-
-    /// Whether the depth layer is read (see the `depth` field).
-    pub fn reads_depth(&self) -> bool {
-        self.depth.unwrap_or(true)
     }
 
     /// The exposure key (see the `exposure_key` field).
@@ -73,18 +58,28 @@ impl DenoiserConfig {
         self.exposure_key.unwrap_or(crate::encode::DEFAULT_KEY)
     }
 
-    /// How inputs are encoded for this network.
+    /// How inputs are encoded for this network (every network reads the depth layer).
     pub fn encoding(&self) -> Encoding {
-        Encoding { demodulate: self.demodulates(), depth: self.reads_depth(), key: self.exposure_key() }
+        Encoding { demodulate: self.demodulates(), depth: true, key: self.exposure_key() }
     }
 
-    /// Inception blocks after the encoder at level `l` (the bottleneck at the coarsest level).
-    pub fn blocks_at(&self, l: usize) -> usize {
-        if l + 1 == self.channels.len() {
-            self.bottleneck_blocks
-        } else {
-            self.level_blocks.as_ref().and_then(|b| b.get(l).copied()).unwrap_or(0)
+    /// Parses a model config, the `.json` saved beside the weights. Unknown fields are ignored.
+    /// Files from before the architecture clean-up may carry `"depth"` and `"level_blocks"`,
+    /// written for the removed `rtd train --no-depth` and `--grow`: they are accepted at the
+    /// values that mean the option was not used (`null` or `true`; `null` or all zeros), and a
+    /// model that used one is refused, since this rtd cannot compute what it does.
+    pub fn from_json(text: &str) -> Result<Self, String> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        let no_depth = value.get("depth").is_some_and(|v| !v.is_null() && v.as_bool() != Some(true));
+        if no_depth {
+            return Err("made with `rtd train --no-depth`, which this rtd no longer supports".into());
         }
+        let no_extra = |v: &serde_json::Value| v.as_array().is_some_and(|b| b.iter().all(|n| n.as_u64() == Some(0)));
+        let grown = value.get("level_blocks").is_some_and(|v| !v.is_null() && !no_extra(v));
+        if grown {
+            return Err("made with `rtd train --grow`, which this rtd no longer supports".into());
+        }
+        serde_json::from_value(value).map_err(|e| e.to_string())
     }
 
     /// The resolution factor the image size must be padded to: 2^(levels−1).
@@ -101,13 +96,10 @@ impl DenoiserConfig {
         for l in 1..levels {
             encoders.push(InceptionBlock::new(c[l - 1], c[l], 1, self.prong, device));
         }
-        let blocks = |l: usize| -> Vec<InceptionBlock> {
-            (0..self.blocks_at(l))
-                .map(|i| InceptionBlock::new(c[l], c[l], block_dilation(i), self.prong, device))
-                .collect()
-        };
-        let level_blocks = (0..levels - 1).map(blocks).collect();
-        let bottleneck = blocks(levels - 1);
+        let last = c[levels - 1];
+        let bottleneck = (0..self.bottleneck_blocks)
+            .map(|i| InceptionBlock::new(last, last, block_dilation(i), self.prong, device))
+            .collect();
         let decoders = (0..levels - 1)
             .map(|l| Decoder {
                 fuse: conv(c[l + 1] + c[l], c[l], 1, 1, device),
@@ -118,7 +110,6 @@ impl DenoiserConfig {
         DenoiserNet {
             stem,
             encoders,
-            level_blocks,
             bottleneck,
             decoders,
             output,
@@ -137,10 +128,8 @@ impl DenoiserConfig {
             let s = 1 << l;
             r += s / 2 + block(1, s); // 2× max-pool, then a block at scale s
         }
-        // The deepest path also passes every level's blocks (the bottleneck included).
-        for l in 0..levels {
-            r += (0..self.blocks_at(l)).map(|i| block(block_dilation(i), 1 << l)).sum::<usize>();
-        }
+        // The deepest path also passes the bottleneck blocks, at the coarsest scale.
+        r += (0..self.bottleneck_blocks).map(|i| block(block_dilation(i), 1 << (levels - 1))).sum::<usize>();
         for l in (0..levels - 1).rev() {
             r += (1 << l) * 2; // nearest upsample + 1×1 fuse + 3×3 conv at scale 2^l
         }
@@ -157,9 +146,8 @@ impl DenoiserConfig {
         for l in 1..levels {
             m += InceptionBlock::macs(c[l - 1], c[l], self.prong) * scale(l);
         }
-        for (l, &cl) in c.iter().enumerate() {
-            m += self.blocks_at(l) as f64 * InceptionBlock::macs(cl, cl, self.prong) * scale(l);
-        }
+        let last = levels - 1;
+        m += self.bottleneck_blocks as f64 * InceptionBlock::macs(c[last], c[last], self.prong) * scale(last);
         for l in 0..levels - 1 {
             m += ((c[l + 1] + c[l]) * c[l] + 9 * c[l] * c[l]) as f64 * scale(l);
         }
@@ -173,7 +161,7 @@ fn block_dilation(i: usize) -> usize {
 }
 
 /// A stride-1 convolution with "same" padding.
-pub(crate) fn conv(cin: usize, cout: usize, k: usize, dilation: usize, device: &Device) -> Conv2d {
+fn conv(cin: usize, cout: usize, k: usize, dilation: usize, device: &Device) -> Conv2d {
     conv_rect(cin, cout, [k, k], dilation, device)
 }
 
@@ -252,16 +240,13 @@ impl InceptionBlock {
     }
 }
 
-/// The denoiser: stem conv, an encoder of inception blocks with 2× max-pool between levels
-/// (optionally more blocks after a level's encoder), inception bottleneck blocks, a decoder of
-/// nearest upsampling + skip concatenation + 1×1 fuse + 3×3 convs, and a 1×1 output conv
-/// predicting encoded colour.
+/// The denoiser: stem conv, an encoder of inception blocks with 2× max-pool between levels,
+/// inception bottleneck blocks, a decoder of nearest upsampling + skip concatenation + 1×1
+/// fuse + 3×3 convs, and a 1×1 output conv predicting encoded colour.
 #[derive(Module, Debug)]
 pub struct DenoiserNet {
     pub(crate) stem: Conv2d,
     pub(crate) encoders: Vec<InceptionBlock>,
-    /// Blocks after the encoder at each level but the coarsest (see `level_blocks` in the config).
-    pub(crate) level_blocks: Vec<Vec<InceptionBlock>>,
     pub(crate) bottleneck: Vec<InceptionBlock>,
     pub(crate) decoders: Vec<Decoder>,
     pub(crate) output: Conv2d,
@@ -293,9 +278,6 @@ impl DenoiserNet {
                 y = self.downsample.forward(y); // [N, c(l−1), H/2^l, W/2^l]
             }
             y = enc.forward(y); // [N, c(l), H/2^l, W/2^l]
-            for b in self.level_blocks.get(l).into_iter().flatten() {
-                y = b.forward(y); // [N, c(l), H/2^l, W/2^l]
-            }
             skips.push(y.clone());
         }
         for b in &self.bottleneck {
@@ -330,9 +312,36 @@ mod tests {
             );
             assert_eq!(net.forward(x).dims(), [2, 3, h, w]);
         }
-        // The shipped U-Net costs less per pixel than the single-scale stack yet sees further.
-        let (u, s) = (DenoiserConfig::unet(), DenoiserConfig::single_scale());
-        assert!(u.macs_per_pixel() < s.macs_per_pixel());
-        assert!(u.receptive_radius() > s.receptive_radius() && s.receptive_radius() >= 15);
+        // The shipped U-Net's figures, as models/README.md and the tile margin have them.
+        let u = DenoiserConfig::unet();
+        assert_eq!((u.alignment(), u.receptive_radius()), (4, 48));
+        assert_eq!(u.macs_per_pixel(), 29768.0);
+        // Each bottleneck block adds cost and reach.
+        let deeper = DenoiserConfig::unet().with_bottleneck_blocks(3);
+        assert!(deeper.macs_per_pixel() > u.macs_per_pixel() && deeper.receptive_radius() > u.receptive_radius());
+    }
+
+    #[test]
+    fn model_configs_of_removed_training_options_are_refused_and_the_shipped_one_loads() {
+        use serde_json::json;
+        let shipped = DenoiserConfig::from_json(include_str!("../../../models/rtd-denoiser.json")).unwrap();
+        assert_eq!((&shipped.channels, shipped.bottleneck_blocks, shipped.prong), (&vec![24, 48, 64], 2, 5));
+        assert!(shipped.demodulates() && (shipped.exposure_key() - 2.88).abs() < 1e-6);
+        assert_eq!(shipped.encoding(), Encoding { demodulate: true, depth: true, key: shipped.exposure_key() });
+        // A small config's JSON with one field set as older rtd versions wrote it.
+        let with = |field: &str, v: serde_json::Value| {
+            let mut json = serde_json::to_value(DenoiserConfig::new(vec![8, 8])).unwrap();
+            json[field] = v;
+            DenoiserConfig::from_json(&json.to_string())
+        };
+        for (field, unused) in [("depth", json!(null)), ("depth", json!(true)), ("level_blocks", json!([0]))] {
+            assert_eq!(with(field, unused.clone()), Ok(DenoiserConfig::new(vec![8, 8])), "{field}: {unused}");
+        }
+        assert_eq!(with("level_blocks", json!(null)), Ok(DenoiserConfig::new(vec![8, 8])));
+        let e = with("depth", json!(false)).unwrap_err();
+        assert!(e.contains("--no-depth"), "{e}");
+        let e = with("level_blocks", json!([0, 1])).unwrap_err();
+        assert!(e.contains("--grow"), "{e}");
+        assert!(DenoiserConfig::from_json("{").is_err());
     }
 }

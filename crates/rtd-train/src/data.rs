@@ -2,7 +2,7 @@
 //! the auto-exposure inference would use), then random crops are cut, flipped, transposed,
 //! colour-permuted and stripped of optional guide layers, exactly as inference can see them.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -14,33 +14,41 @@ use rtd_image::HdrImage;
 use crate::dataset::{view_path, Manifest, ViewRecord};
 use crate::TrainError;
 
-/// One view, loaded.
+/// One view of a dataset, loaded from its EXR.
 pub struct View {
     /// The manifest entry.
     pub record: ViewRecord,
-    /// Width and height.
+    /// The view's EXR file (in the dataset directory), which errors about the view name.
+    pub path: PathBuf,
+    /// Width and height in pixels.
     pub size: (usize, usize),
-    /// Noisy renders by spp.
+    /// Noisy renders by sample count, in the manifest's order.
     pub noisy: Vec<(u32, HdrImage)>,
-    /// The reference.
+    /// The high-spp reference render.
     pub reference: HdrImage,
-    /// Guide layers: guide RGB, albedo, normal, AO, depth.
+    /// The guide RGB: albedo × AO.
     pub guide: HdrImage,
-    /// Albedo.
+    /// Albedo layer of the guide pass.
     pub albedo: HdrImage,
-    /// Normal.
+    /// World-space normal layer of the guide pass.
     pub normal: HdrImage,
-    /// AO.
+    /// Ambient occlusion, one value per pixel.
     pub ao: Vec<f32>,
-    /// Depth.
+    /// Camera distance, one value per pixel (0 where the ray escapes).
     pub depth: Vec<f32>,
 }
 
 impl View {
-    /// The denoiser input for the noisy render at `spp`, with every guide layer.
-    pub fn input(&self, spp: u32) -> DenoiseInput<'_> {
-        let color = &self.noisy.iter().find(|(s, _)| *s == spp).expect("spp level present").1;
-        DenoiseInput::new(color, &self.guide).albedo_normal(&self.albedo, &self.normal).ao_depth(&self.ao, &self.depth)
+    /// The denoiser input for the noisy render at `spp`, with every guide layer; an error
+    /// naming the view's file and the sample counts it has when it has no render at `spp`.
+    pub fn input(&self, spp: u32) -> Result<DenoiseInput<'_>, TrainError> {
+        let Some((_, color)) = self.noisy.iter().find(|(s, _)| *s == spp) else {
+            let stored: Vec<String> = self.noisy.iter().map(|(s, _)| s.to_string()).collect();
+            let message = format!("has no noisy render at {spp} spp (it has {} spp)", stored.join(", "));
+            return Err(TrainError::msg(&self.path, message));
+        };
+        let input = DenoiseInput::new(color, &self.guide).albedo_normal(&self.albedo, &self.normal);
+        Ok(input.ao_depth(&self.ao, &self.depth))
     }
 }
 
@@ -65,6 +73,7 @@ pub fn load_views(dir: &Path, validation: bool) -> Result<Vec<View>, TrainError>
         let reference = rgb("reference")?;
         views.push(View {
             record: record.clone(),
+            path: path.clone(),
             size: (reference.width as usize, reference.height as usize),
             noisy,
             guide: rgb("guide")?,
@@ -131,7 +140,8 @@ pub const DROP_PROBABILITY: f32 = 0.3;
 
 impl CropSampler {
     /// Encodes every view at every stored sample count (or only those in `spp_levels`) as
-    /// `encoding` says (demodulating colour and target by the albedo if it demodulates).
+    /// `encoding` says (demodulating colour and target by the albedo if it demodulates). A view
+    /// smaller than `crop` on either side is an error naming its file.
     pub fn new(
         views: &[View],
         crop: usize,
@@ -141,8 +151,12 @@ impl CropSampler {
         let demodulate = encoding.demodulate;
         let mut encoded = vec![];
         for v in views {
+            if v.size.0 < crop || v.size.1 < crop {
+                let (w, h) = v.size;
+                return Err(TrainError::msg(&v.path, format!("is {w}x{h} px, smaller than the {crop} px crops")));
+            }
             for (spp, _) in v.noisy.iter().filter(|(spp, _)| spp_levels.is_none_or(|l| l.contains(spp))) {
-                let input = v.input(*spp);
+                let input = v.input(*spp)?;
                 let e = encoding.exposure(input.color);
                 let planes = encode_planes(&input, e, encoding)?;
                 let albedo = demod_albedo(&input, demodulate);
@@ -255,6 +269,7 @@ mod tests {
                 reference_relmse: 0.0,
                 seconds: 0.0,
             },
+            path: PathBuf::from("toy.exr"),
             size: (8, 8),
             noisy: vec![(1, color.clone())],
             reference: color.clone(),
@@ -322,5 +337,16 @@ mod tests {
         assert!(flags(1.0).iter().all(|&f| f == (0.0, 0.0)));
         let half = flags(0.5);
         assert!(half.contains(&(1.0, 1.0)) && half.contains(&(0.0, 0.0)) && half.contains(&(1.0, 0.0)));
+    }
+
+    #[test]
+    fn a_missing_sample_count_or_an_oversized_crop_is_an_error_naming_the_view() {
+        let mut view = toy_view();
+        view.noisy.push((8, view.noisy[0].1.clone()));
+        assert!(view.input(8).is_ok());
+        let e = view.input(3).err().expect("no render at 3 spp").to_string();
+        assert_eq!(e, "toy.exr: has no noisy render at 3 spp (it has 1, 8 spp)");
+        let e = CropSampler::new(&[view], 16, Encoding::default(), None).err().expect("16 px crops of 8 px views");
+        assert_eq!(e.to_string(), "toy.exr: is 8x8 px, smaller than the 16 px crops");
     }
 }

@@ -17,7 +17,8 @@ use crate::{Progress, TrainError};
 /// The noisy sample counts every view is rendered at.
 pub const NOISY_SPP: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
 
-/// Options for [`generate_dataset`], builder style.
+/// Options for [`generate_dataset`]: start from [`DatasetOptions::default`] and change fields
+/// with the chained setters below.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct DatasetOptions {
     /// Master seed: scenes, cameras and render seeds derive from it.
@@ -213,107 +214,159 @@ fn reject_reason(preview: &HdrImage, guide: &GuidePass) -> Option<&'static str> 
 /// Generates (or resumes) the dataset in `dir`. Returns the manifest.
 pub fn generate_dataset(dir: &Path, options: &DatasetOptions, progress: &dyn Progress) -> Result<Manifest, TrainError> {
     std::fs::create_dir_all(dir.join("scenes")).map_err(|e| TrainError::io(dir, e))?;
-    let mut manifest = match Manifest::load(dir) {
-        Ok(m) if m.options == *options => m,
-        // Same options but more scenes: extend. Scene k is the same whatever the count.
-        Ok(mut m) if m.options.scenes < options.scenes && m.options == options.clone().scenes(m.options.scenes) => {
-            m.options.scenes = options.scenes;
-            m
-        }
-        Ok(_) => {
-            return Err(TrainError::msg(
-                &dir.join("manifest.json"),
-                "was made with other options (only --scenes may grow); use a new directory",
-            ))
-        }
-        Err(_) => Manifest { options: options.clone(), noisy_spp: NOISY_SPP.to_vec(), views: vec![], rejected: vec![] },
-    };
+    let mut manifest = open_manifest(dir, options)?;
     let total = options.scene_indices().count() as u64 * options.views_per_scene as u64;
     progress.start(total, "datagen");
     progress.inc((manifest.views.len() + manifest.rejected.len()) as u64);
-    let size = options.size;
     for scene_index in options.scene_indices() {
-        let done = |m: &Manifest, v: usize| {
-            let key = format!("{scene_index}/{v}");
-            m.views.iter().any(|r| r.scene == scene_index && r.view == v) || m.rejected.contains(&key)
-        };
-        if (0..options.views_per_scene).all(|v| done(&manifest, v)) {
-            continue;
-        }
-        let (gen, layout) = generate_scene(
-            options.seed,
-            scene_index,
-            &SceneGenOptions { views: options.views_per_scene, texture_size: 256 },
-        );
-        let name = format!("scene{scene_index:04}");
-        gen.write(&dir.join("scenes"), &name)?;
-        let scene = rtd_scene::load_scene(&dir.join("scenes").join(format!("{name}.gltf")))?;
-        let rs = RenderScene::new(scene);
-        for view in 0..options.views_per_scene {
-            if done(&manifest, view) {
-                continue;
-            }
-            if progress.cancelled() {
-                return Ok(manifest);
-            }
-            let start = Instant::now();
-            let cam = rs.scene.cameras[view].clone();
-            let guide = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(size, size))?;
-            let preview = beauty(&rs, &cam, size, render_seed(options.seed, scene_index, view, 99), 4)?;
-            if let Some(why) = reject_reason(&preview, &guide) {
-                manifest.rejected.push(format!("{scene_index}/{view}"));
-                progress.note(&format!("scene {scene_index} view {view} rejected: {why}"));
-                manifest.save(dir)?;
-                progress.inc(1);
-                continue;
-            }
-            let mut layers = Layers::new(size, size);
-            for (k, spp) in NOISY_SPP.iter().enumerate() {
-                let img = beauty(&rs, &cam, size, render_seed(options.seed, scene_index, view, k as u64), *spp)?;
-                layers.push_rgb(&format!("noisy{spp}"), &img);
-            }
-            guide.add_to(&mut layers);
-            // Reference: independent halves; their difference estimates the noise left in the mean.
-            let mut halves: Vec<HdrImage> = vec![];
-            let mut reference_relmse;
-            let mut round = 0u64;
-            loop {
-                for h in 0..2 {
-                    halves.push(beauty(
-                        &rs,
-                        &cam,
-                        size,
-                        render_seed(options.seed, scene_index, view, 100 + round * 2 + h),
-                        options.reference_spp / 2,
-                    )?);
-                }
-                let (a, b) = mean_of_halves(&halves);
-                let (both, noise) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
-                reference_relmse = noise;
-                round += 1;
-                if reference_relmse <= options.reference_relmse || round >= 2 {
-                    layers.push_rgb("reference", &both);
-                    break;
-                }
-            }
-            let file = format!("views/{name}_v{view}.exr");
-            std::fs::create_dir_all(dir.join("views")).map_err(|e| TrainError::io(dir, e))?;
-            rtd_image::write_exr(&dir.join(&file), &layers)?;
-            manifest.views.push(ViewRecord {
-                file,
-                scene: scene_index,
-                view,
-                layout,
-                validation: options.is_validation(scene_index),
-                reference_spp: options.reference_spp * round as u32,
-                reference_relmse,
-                seconds: start.elapsed().as_secs_f64(),
-            });
-            manifest.save(dir)?;
-            progress.inc(1);
+        if !render_scene(dir, options, scene_index, &mut manifest, progress)? {
+            break;
         }
     }
     Ok(manifest)
+}
+
+/// The manifest to continue in `dir`: the one there if `options` made it, or made it with fewer
+/// scenes (it is then extended: scene k is the same whatever the count), a new one if there is
+/// none; a dataset made with any other options is refused.
+fn open_manifest(dir: &Path, options: &DatasetOptions) -> Result<Manifest, TrainError> {
+    match Manifest::load(dir) {
+        Ok(m) if m.options == *options => Ok(m),
+        Ok(mut m) if m.options.scenes < options.scenes && m.options == options.clone().scenes(m.options.scenes) => {
+            m.options.scenes = options.scenes;
+            Ok(m)
+        }
+        Ok(_) => Err(TrainError::msg(
+            &dir.join("manifest.json"),
+            "was made with other options (only --scenes may grow); use a new directory",
+        )),
+        Err(_) => {
+            Ok(Manifest { options: options.clone(), noisy_spp: NOISY_SPP.to_vec(), views: vec![], rejected: vec![] })
+        }
+    }
+}
+
+/// True when `manifest` has view `view` of scene `scene`, or has rejected it.
+fn view_done(manifest: &Manifest, scene: u64, view: usize) -> bool {
+    let key = format!("{scene}/{view}");
+    manifest.views.iter().any(|r| r.scene == scene && r.view == view) || manifest.rejected.contains(&key)
+}
+
+/// Generates scene `scene_index` (writing its glTF) and renders the views of it that `manifest`
+/// lacks, recording each view or its rejection in `manifest`, saved after every view. Returns
+/// false when `progress` was cancelled.
+fn render_scene(
+    dir: &Path,
+    options: &DatasetOptions,
+    scene_index: u64,
+    manifest: &mut Manifest,
+    progress: &dyn Progress,
+) -> Result<bool, TrainError> {
+    if (0..options.views_per_scene).all(|v| view_done(manifest, scene_index, v)) {
+        return Ok(true);
+    }
+    let scene_options = SceneGenOptions { views: options.views_per_scene, texture_size: 256 };
+    let (gen, layout) = generate_scene(options.seed, scene_index, &scene_options);
+    let name = format!("scene{scene_index:04}");
+    gen.write(&dir.join("scenes"), &name)?;
+    let scene = rtd_scene::load_scene(&dir.join("scenes").join(format!("{name}.gltf")))?;
+    let rs = RenderScene::new(scene);
+    for view in 0..options.views_per_scene {
+        if view_done(manifest, scene_index, view) {
+            continue;
+        }
+        if progress.cancelled() {
+            return Ok(false);
+        }
+        let start = Instant::now();
+        match render_view(&rs, options, scene_index, view)? {
+            ViewRender::Rejected(why) => {
+                manifest.rejected.push(format!("{scene_index}/{view}"));
+                progress.note(&format!("scene {scene_index} view {view} rejected: {why}"));
+            }
+            ViewRender::Kept { layers, reference_spp, reference_relmse } => {
+                let file = format!("views/{name}_v{view}.exr");
+                std::fs::create_dir_all(dir.join("views")).map_err(|e| TrainError::io(dir, e))?;
+                rtd_image::write_exr(&dir.join(&file), &layers)?;
+                manifest.views.push(ViewRecord {
+                    file,
+                    scene: scene_index,
+                    view,
+                    layout,
+                    validation: options.is_validation(scene_index),
+                    reference_spp,
+                    reference_relmse,
+                    seconds: start.elapsed().as_secs_f64(),
+                });
+            }
+        }
+        manifest.save(dir)?;
+        progress.inc(1);
+    }
+    Ok(true)
+}
+
+/// One view's renders, or why the view is not kept.
+enum ViewRender {
+    /// The noisy renders, guide layers and reference, with the reference's samples per pixel
+    /// and its estimated remaining relMSE.
+    Kept { layers: Layers, reference_spp: u32, reference_relmse: f64 },
+    /// Its preview came out black or empty ([`reject_reason`]).
+    Rejected(&'static str),
+}
+
+/// Renders camera `view` of scene `scene_index` (loaded as `rs`): the guide pass and a 4-spp
+/// preview that may reject the view, then the noisy renders at every [`NOISY_SPP`] and the
+/// reference.
+fn render_view(
+    rs: &RenderScene,
+    options: &DatasetOptions,
+    scene_index: u64,
+    view: usize,
+) -> Result<ViewRender, TrainError> {
+    let size = options.size;
+    let cam = rs.scene.cameras[view].clone();
+    let guide = GuidePass::render(&rs.scene, &rs.bvh, &cam, &GuideSettings::new(size, size))?;
+    let preview = beauty(rs, &cam, size, render_seed(options.seed, scene_index, view, 99), 4)?;
+    if let Some(why) = reject_reason(&preview, &guide) {
+        return Ok(ViewRender::Rejected(why));
+    }
+    let mut layers = Layers::new(size, size);
+    for (k, spp) in NOISY_SPP.iter().enumerate() {
+        let img = beauty(rs, &cam, size, render_seed(options.seed, scene_index, view, k as u64), *spp)?;
+        layers.push_rgb(&format!("noisy{spp}"), &img);
+    }
+    guide.add_to(&mut layers);
+    let (reference, rounds, reference_relmse) = render_reference(rs, &cam, options, scene_index, view)?;
+    layers.push_rgb("reference", &reference);
+    Ok(ViewRender::Kept { layers, reference_spp: options.reference_spp * rounds, reference_relmse })
+}
+
+/// A view's reference from independent half renders of `options.reference_spp / 2` samples,
+/// whose difference estimates the noise left in their mean: one pair, and a second where the
+/// first leaves more relMSE than `options.reference_relmse`. Returns the mean of all halves,
+/// the number of pairs and the estimated relMSE.
+fn render_reference(
+    rs: &RenderScene,
+    cam: &rtd_scene::Camera,
+    options: &DatasetOptions,
+    scene_index: u64,
+    view: usize,
+) -> Result<(HdrImage, u32, f64), TrainError> {
+    let mut halves: Vec<HdrImage> = vec![];
+    let mut round = 0u64;
+    loop {
+        for h in 0..2 {
+            let seed = render_seed(options.seed, scene_index, view, 100 + round * 2 + h);
+            halves.push(beauty(rs, cam, options.size, seed, options.reference_spp / 2)?);
+        }
+        let (a, b) = mean_of_halves(&halves);
+        let (both, noise) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
+        round += 1;
+        if noise <= options.reference_relmse || round >= 2 {
+            return Ok((both, round as u32, noise));
+        }
+    }
 }
 
 /// Re-renders the guide layers (`guide`, `albedo`, `normal`, `depth`, `ao`) of every view of

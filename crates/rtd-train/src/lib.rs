@@ -1,6 +1,8 @@
 //! Self-contained training for rtd's denoiser: the procedural scene generator
-//! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]) and the training loop
-//! ([`train`]).
+//! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]), the training loop
+//! ([`train`]), its curves ([`plot`]) and the validation report ([`evaluate`]).
+
+#![warn(missing_docs)]
 
 pub mod data;
 pub mod dataset;
@@ -30,6 +32,15 @@ pub enum TrainError {
         /// The file concerned.
         path: PathBuf,
         /// What is wrong.
+        message: String,
+    },
+    /// Training options that cannot work, or not on the dataset they were given (see
+    /// [`train::TrainOptions::validate`]); nothing was loaded or written.
+    #[error("{dataset}: {message}")]
+    InvalidOptions {
+        /// The dataset directory the options were checked against.
+        dataset: PathBuf,
+        /// Which option is wrong and why, in one line.
         message: String,
     },
     /// Image I/O failed.

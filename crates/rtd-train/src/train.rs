@@ -1,7 +1,7 @@
 //! `rtd train`: Adam on random crops with a warm-up + cosine learning-rate schedule, L1 loss on
-//! log-encoded HDR colour (optionally plus L1 on its image gradients and a squared error on the
-//! display transform the PSNR measures), validation (PSNR, SSIM, relMSE against the noisy input) on held-out
-//! scenes every epoch, and resumable checkpoints.
+//! log-encoded HDR colour (optionally plus a squared error on the display transform the PSNR
+//! measures), validation (PSNR, SSIM, relMSE against the noisy input) on held-out scenes every
+//! epoch, and resumable checkpoints.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -10,48 +10,45 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::store::ModuleRecord;
 use burn::tensor::{Device, Tensor, TensorData};
-use rtd_denoise::{grow, Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
+use rtd_denoise::{Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
 use rtd_image::metrics;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{load_views, CropSampler, View, DROP_PROBABILITY};
+use crate::data::{load_views, Batch, CropSampler, View, DROP_PROBABILITY};
 use crate::dataset::Manifest;
 use crate::{Progress, TrainError};
 
-/// Training options, builder style.
+/// What a training run does: the network, the schedule, the loss and the crops. Start from
+/// [`TrainOptions::default`] and change fields with the chained setters below, e.g.
+/// `TrainOptions::default().steps(500).batch(4, 32)`; [`TrainOptions::validate`] checks the
+/// result against a dataset, and [`train`] calls it before it writes anything.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TrainOptions {
-    /// The network to train.
+    /// The network to train (saved as `model.json` at the end).
     pub config: DenoiserConfig,
-    /// Seed for weights and batches.
+    /// Seed for the initial weights and for every batch's crops and augmentations.
     pub seed: u64,
-    /// Optimiser steps in all.
+    /// Optimiser steps in all (at least 1).
     pub steps: u64,
-    /// Crops per batch.
+    /// Crops per batch (at least 1).
     pub batch: usize,
-    /// Crop side in pixels.
+    /// Crop side in pixels: a positive multiple of the network's alignment, at most the
+    /// dataset's view sides.
     pub crop: usize,
-    /// Peak learning rate.
+    /// Peak learning rate of the warm-up + cosine schedule ([`TrainOptions::learning_rate_at`]).
     pub learning_rate: f64,
-    /// Steps per epoch (validation and checkpoint after each).
+    /// Steps per epoch (at least 1): validation and a checkpoint follow each epoch.
     pub epoch_steps: u64,
-    /// Validation sample count.
+    /// Noisy sample count the validation views are denoised at every epoch.
     pub validation_spp: u32,
     /// Start from these weights (a `model.bpk` whose `.json` config equals `config`) instead
     /// of random ones: fine-tuning. The optimiser and schedule start afresh.
     #[serde(default)]
     pub init: Option<PathBuf>,
-    /// Weight of the gradient term of [`training_loss`] (0: plain L1).
-    #[serde(default)]
-    pub gradient_loss: f32,
     /// Weight of [`display_loss`], the squared error on the display transform the PSNR is
-    /// measured on (0: off).
+    /// measured on, added to the L1 [`training_loss`] (0: off).
     #[serde(default)]
     pub display_loss: f32,
-    /// Grow the `init` network by a coarser level before training (then `config` is the grown
-    /// config; see [`rtd_denoise::grow`]).
-    #[serde(default)]
-    pub grow: Option<GrowLevel>,
     /// Train only on the noisy renders at these sample counts (`None`: every stored count).
     #[serde(default)]
     pub spp_levels: Option<Vec<u32>>,
@@ -65,23 +62,9 @@ fn default_guide_drop() -> f32 {
     DROP_PROBABILITY
 }
 
-/// A coarser level to add to a trained network: its channels and bottleneck blocks.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
-pub struct GrowLevel {
-    /// Channels of the new level.
-    pub channels: usize,
-    /// Inception blocks at the new level (the new bottleneck).
-    pub blocks: usize,
-}
-
-impl GrowLevel {
-    /// `config` grown by this level ([`grow::grown_config`]).
-    pub fn grown(&self, config: &DenoiserConfig) -> DenoiserConfig {
-        grow::grown_config(config, self.channels, self.blocks)
-    }
-}
-
 impl Default for TrainOptions {
+    /// The shipped U-Net, 3000 steps of 8 crops of 64² at a peak rate of 0.002, epochs of 200
+    /// steps validated at 8 spp, seed 1, plain L1 on every stored sample count.
     fn default() -> Self {
         TrainOptions {
             config: DenoiserConfig::unet(),
@@ -93,9 +76,7 @@ impl Default for TrainOptions {
             epoch_steps: 200,
             validation_spp: 8,
             init: None,
-            gradient_loss: 0.0,
             display_loss: 0.0,
-            grow: None,
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
         }
@@ -134,18 +115,7 @@ impl TrainOptions {
         self.init = model;
         self
     }
-    /// Grows the `init` network by a coarser level before training; `config` must then be
-    /// the grown config ([`rtd_denoise::grow::grown_config`]).
-    pub fn grow(mut self, level: Option<GrowLevel>) -> Self {
-        self.grow = level;
-        self
-    }
-    /// Sets the weight of the gradient term of the loss (see [`training_loss`]).
-    pub fn gradient_loss(mut self, w: f32) -> Self {
-        self.gradient_loss = w.max(0.0);
-        self
-    }
-    /// Sets the weight of [`display_loss`] in the loss (0: off).
+    /// Sets the weight of [`display_loss`] in the loss (0: off; negative weights become 0).
     pub fn display_loss(mut self, w: f32) -> Self {
         self.display_loss = w.max(0.0);
         self
@@ -176,38 +146,146 @@ impl TrainOptions {
         let t = (step - warm) as f64 / (self.steps - warm).max(1) as f64;
         self.learning_rate * (0.01 + 0.99 * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()))
     }
+
+    /// Checks that these options can train on the dataset in `data`, whose manifest is
+    /// `manifest`, before any view is loaded or any file written: a network with at least one
+    /// level; at least one step, epoch step and crop per batch; a finite learning rate above 0;
+    /// a finite display-loss weight of at least 0; a guide-drop probability in [0, 1]; a crop
+    /// side that is a positive multiple of the network's alignment and at most the dataset's
+    /// view sides; training and validation sample counts the dataset stores; and training
+    /// views. The error is [`TrainError::InvalidOptions`], naming `data`.
+    pub fn validate(&self, data: &Path, manifest: &Manifest) -> Result<(), TrainError> {
+        match self.problem(manifest) {
+            Some(message) => Err(TrainError::InvalidOptions { dataset: data.to_path_buf(), message }),
+            None => Ok(()),
+        }
+    }
+
+    /// What makes these options unusable on the dataset of `manifest`, if anything.
+    fn problem(&self, manifest: &Manifest) -> Option<String> {
+        if self.config.channels.is_empty() {
+            return Some("the network has no resolution levels".into());
+        }
+        let counts =
+            [("step count", self.steps), ("epoch length", self.epoch_steps), ("batch size", self.batch as u64)];
+        if let Some((what, _)) = counts.iter().find(|(_, n)| *n == 0) {
+            return Some(format!("the {what} is 0; it must be at least 1"));
+        }
+        if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
+            return Some(format!("the learning rate {} is not a finite number above 0", self.learning_rate));
+        }
+        if !(self.display_loss.is_finite() && self.display_loss >= 0.0) {
+            return Some(format!("the display loss weight {} is not a finite number of at least 0", self.display_loss));
+        }
+        if !(0.0..=1.0).contains(&self.guide_drop) {
+            return Some(format!("the guide drop probability {} is not in [0, 1]", self.guide_drop));
+        }
+        let (crop, align, side) = (self.crop, self.config.alignment(), manifest.options.size as usize);
+        if crop == 0 || crop % align != 0 {
+            return Some(format!(
+                "the crop side {crop} px is not a positive multiple of {align}, the network's alignment"
+            ));
+        }
+        if crop > side {
+            return Some(format!("the crop side {crop} px is larger than the dataset's {side}x{side} px views"));
+        }
+        let stored = &manifest.noisy_spp;
+        if let Some(levels) = &self.spp_levels {
+            let missing: Vec<u32> = levels.iter().copied().filter(|l| !stored.contains(l)).collect();
+            if levels.is_empty() {
+                return Some("the list of sample counts to train on is empty".into());
+            }
+            if !missing.is_empty() {
+                return Some(format!(
+                    "the dataset has no noisy renders at the sample counts {missing:?} (it stores {stored:?})"
+                ));
+            }
+        }
+        if !stored.contains(&self.validation_spp) {
+            return Some(format!(
+                "the dataset has no noisy renders at the validation sample count {} (it stores {stored:?})",
+                self.validation_spp
+            ));
+        }
+        if !manifest.views.iter().any(|v| !v.validation) {
+            return Some("the dataset has no training views".into());
+        }
+        None
+    }
 }
 
-/// Validation numbers after one epoch (means over the validation views).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct EpochRecord {
-    /// Steps done.
-    pub step: u64,
-    /// Mean training loss over the epoch.
-    pub train_loss: f64,
+/// Validation means of one epoch over the dataset's validation views: the denoised output's
+/// scores and, as the baseline, the noisy input's, all against the references.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ValidationScores {
     /// Denoised PSNR (dB).
     pub psnr: f64,
     /// Denoised SSIM.
     pub ssim: f64,
     /// Denoised relMSE.
     pub relmse: f64,
-    /// Noisy-input PSNR, the baseline.
+    /// Noisy-input PSNR (dB).
     pub noisy_psnr: f64,
     /// Noisy-input SSIM.
     pub noisy_ssim: f64,
     /// Noisy-input relMSE.
     pub noisy_relmse: f64,
+}
+
+/// One finished epoch of a run, as `state.json` records it.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(from = "EpochWire")]
+pub struct EpochRecord {
+    /// Steps done at the end of the epoch.
+    pub step: u64,
+    /// Mean training loss over the epoch.
+    pub train_loss: f64,
+    /// The validation scores, or `None` when the dataset has no validation views.
+    pub validation: Option<ValidationScores>,
     /// Training throughput over the epoch, crops per second.
     pub crops_per_s: f64,
     /// Wall seconds of training so far (all sessions).
     pub wall_s: f64,
 }
 
-impl EpochRecord {
-    /// Whether the epoch was validated: a dataset without validation views records 0 dB for
-    /// the noisy input too, which no real image scores.
-    pub fn has_validation(&self) -> bool {
-        self.noisy_psnr > 0.0
+/// An [`EpochRecord`] as `state.json` holds it: as written now (`validation` an object or
+/// null), or as written before `validation` existed, with the six scores flat in the record
+/// and 0 dB for the noisy input when the dataset had no validation views (no real image scores
+/// that), so that older runs still resume.
+#[derive(Deserialize)]
+struct EpochWire {
+    step: u64,
+    train_loss: f64,
+    #[serde(default)]
+    validation: Option<ValidationScores>,
+    #[serde(default)]
+    psnr: f64,
+    #[serde(default)]
+    ssim: f64,
+    #[serde(default)]
+    relmse: f64,
+    #[serde(default)]
+    noisy_psnr: f64,
+    #[serde(default)]
+    noisy_ssim: f64,
+    #[serde(default)]
+    noisy_relmse: f64,
+    crops_per_s: f64,
+    wall_s: f64,
+}
+
+impl From<EpochWire> for EpochRecord {
+    fn from(w: EpochWire) -> Self {
+        let flat = ValidationScores {
+            psnr: w.psnr,
+            ssim: w.ssim,
+            relmse: w.relmse,
+            noisy_psnr: w.noisy_psnr,
+            noisy_ssim: w.noisy_ssim,
+            noisy_relmse: w.noisy_relmse,
+        };
+        let validation = w.validation.or((w.noisy_psnr > 0.0).then_some(flat));
+        EpochRecord { step: w.step, train_loss: w.train_loss, validation, crops_per_s: w.crops_per_s, wall_s: w.wall_s }
     }
 }
 
@@ -241,6 +319,13 @@ impl RunFiles {
     }
 }
 
+/// What the step loop advances: the network, its optimiser and the run's state.
+struct Run {
+    net: DenoiserNet,
+    optim: ModuleOptimizer,
+    state: TrainState,
+}
+
 fn save_record(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
     rtd_image::write_atomic(path, |w| {
         std::io::Write::write_all(w, bytes).map_err(|e| rtd_image::ImageError::io(path, e))
@@ -248,15 +333,11 @@ fn save_record(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
     Ok(())
 }
 
-/// Mean metrics of `net` on the validation views at `spp`: (denoised, noisy).
-pub fn validate(
-    denoiser: &Denoiser,
-    views: &[View],
-    spp: u32,
-) -> Result<(metrics::Metrics, metrics::Metrics), TrainError> {
+/// Mean scores of `denoiser` on the validation `views` at `spp`, beside the noisy input's.
+pub fn validation_scores(denoiser: &Denoiser, views: &[View], spp: u32) -> Result<ValidationScores, TrainError> {
     let mut sums = [[0.0f64; 3]; 2];
     for v in views {
-        let input = v.input(spp);
+        let input = v.input(spp)?;
         let out = denoiser.denoise(&input)?;
         for (k, img) in [&out, input.color].into_iter().enumerate() {
             let m = metrics::metrics(img, &v.reference, 0);
@@ -266,32 +347,21 @@ pub fn validate(
         }
     }
     let n = views.len().max(1) as f64;
-    let mk = |s: [f64; 3]| metrics::Metrics {
-        psnr: s[0] / n,
-        ssim: s[1] / n,
-        relmse: s[2] / n,
-        smape: f64::NAN,
-        snr_db: f64::NAN,
-    };
-    Ok((mk(sums[0]), mk(sums[1])))
+    let [denoised, noisy] = sums.map(|s| s.map(|x| x / n));
+    Ok(ValidationScores {
+        psnr: denoised[0],
+        ssim: denoised[1],
+        relmse: denoised[2],
+        noisy_psnr: noisy[0],
+        noisy_ssim: noisy[1],
+        noisy_relmse: noisy[2],
+    })
 }
 
-/// The training loss of output and target batches `[B, 3, H, W]` of log-encoded colour: mean
-/// |out − target|, plus `gradient_weight` × the mean |∂(out − target)| over horizontal and
-/// vertical neighbour differences. The gradient term is zero only where the output's edges and
-/// texture have the reference's position and contrast, so it penalises blurred edges more than
-/// plain L1 does.
-pub fn training_loss(out: Tensor<4>, target: Tensor<4>, gradient_weight: f32) -> Tensor<1> {
-    let diff = out - target;
-    let l1 = diff.clone().abs().mean();
-    let [b, c, h, w] = diff.dims();
-    if gradient_weight == 0.0 || h < 2 || w < 2 {
-        return l1;
-    }
-    // Neighbour differences of the error along x and y.
-    let dx = diff.clone().slice([0..b, 0..c, 0..h, 1..w]) - diff.clone().slice([0..b, 0..c, 0..h, 0..w - 1]);
-    let dy = diff.clone().slice([0..b, 0..c, 1..h, 0..w]) - diff.slice([0..b, 0..c, 0..h - 1, 0..w]);
-    l1 + (dx.abs().mean() + dy.abs().mean()).mul_scalar(gradient_weight)
+/// The training loss of output and target batches `[B, 3, H, W]` of log-encoded colour: the
+/// mean |out − target|.
+pub fn training_loss(out: Tensor<4>, target: Tensor<4>) -> Tensor<1> {
+    (out - target).abs().mean()
 }
 
 /// Encoded colour that decodes beyond this is clipped by the display transform anyway; the
@@ -325,35 +395,29 @@ fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser
     Ok(Denoiser::from_net(inference, config.clone(), device, "training"))
 }
 
-/// Random weights, or those of `options.init` after checking its config matches (grown by
-/// `options.grow` if set).
+/// Random weights, or those of `options.init` after checking that its config describes the
+/// network being trained.
 fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, TrainError> {
     let Some(path) = &options.init else {
         return Ok(options.config.init(device));
     };
     let cfg_path = path.with_extension("json");
     let text = std::fs::read_to_string(&cfg_path).map_err(|e| TrainError::io(&cfg_path, e))?;
-    let config: DenoiserConfig =
-        serde_json::from_str(&text).map_err(|e| TrainError::msg(&cfg_path, format!("not a model config: {e}")))?;
-    // Demodulation, leaving depth out and the exposure key change what the input planes mean,
-    // not the weights' shapes, so a model without them may seed one with them.
-    let config = config
-        .with_demodulate(options.config.demodulate)
-        .with_depth(options.config.depth)
-        .with_exposure_key(options.config.exposure_key);
-    if options.grow.map_or(config.clone(), |g| g.grown(&config)) != options.config {
+    let config = DenoiserConfig::from_json(&text)
+        .map_err(|e| TrainError::msg(&cfg_path, format!("not a usable model config: {e}")))?;
+    // Demodulation and the exposure key change what the input planes mean, not the weights'
+    // shapes, so a model without them may seed one with them.
+    let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
+    if config != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    Ok(match options.grow {
-        Some(g) => grow::add_level(net, &config, g.channels, g.blocks, device).0,
-        None => net,
-    })
+    config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))
 }
 
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing
-/// checkpoints, `state.json`, and finally `model.bpk` + `model.json` into `out`.
+/// checkpoints, `state.json`, and finally `model.bpk` + `model.json` into `out`. The options
+/// are checked first ([`TrainOptions::validate`]), before `out` is created.
 pub fn train(
     data: &Path,
     out: &Path,
@@ -361,122 +425,171 @@ pub fn train(
     resume: bool,
     progress: &dyn Progress,
 ) -> Result<TrainState, TrainError> {
-    if let Some(levels) = &options.spp_levels {
-        // Checked against the manifest before any view is loaded or any file written.
-        let stored = Manifest::load(data)?.noisy_spp;
-        let missing: Vec<u32> = levels.iter().copied().filter(|l| !stored.contains(l)).collect();
-        if !missing.is_empty() {
-            return Err(TrainError::msg(
-                &data.join("manifest.json"),
-                format!("has no noisy renders at the sample counts {missing:?} (it stores {stored:?})"),
-            ));
-        }
-    }
+    options.validate(data, &Manifest::load(data)?)?;
     std::fs::create_dir_all(out).map_err(|e| TrainError::io(out, e))?;
     let files = RunFiles::new(out);
     let device = Device::flex().autodiff();
     device.seed(options.seed);
-    let (mut net, mut optim, mut state) = if files.state.exists() {
-        if !resume {
-            return Err(TrainError::msg(
-                &files.state,
-                "a training run is already here; pass --resume to continue it or choose a new directory",
-            ));
+    let run = start_or_resume(&files, options, resume, &device)?;
+    let (sampler, val_views) = load_data(data, options)?;
+    let run = run_steps(run, &sampler, &val_views, &files, options, &device, progress)?;
+    if run.state.step >= options.steps {
+        save_model(out, &run.net, &options.config)?;
+    }
+    Ok(run.state)
+}
+
+/// A fresh run (initial weights, a new optimiser, no history), or with `resume` the one whose
+/// checkpoint is in `files`, which must have been started with the same options.
+fn start_or_resume(files: &RunFiles, options: &TrainOptions, resume: bool, device: &Device) -> Result<Run, TrainError> {
+    if !files.state.exists() {
+        let state = TrainState { options: options.clone(), step: 0, history: vec![], losses: vec![] };
+        return Ok(Run { net: initial_net(options, device)?, optim: AdamConfig::new().init(), state });
+    }
+    if !resume {
+        return Err(TrainError::msg(
+            &files.state,
+            "a training run is already here; pass --resume to continue it or choose a new directory",
+        ));
+    }
+    let text = std::fs::read_to_string(&files.state).map_err(|e| TrainError::io(&files.state, e))?;
+    if let Some(why) = removed_option(&text) {
+        return Err(TrainError::msg(&files.state, why));
+    }
+    let state: TrainState = serde_json::from_str(&text).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
+    if state.options != *options {
+        return Err(TrainError::msg(&files.state, "was written with other training options"));
+    }
+    let record = ModuleRecord::load(&files.weights).map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
+    let net = options
+        .config
+        .init(device)
+        .try_load_record(record)
+        .map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
+    let optim_record = burn::optim::OptimizerRecord::load(&files.optimizer)
+        .map_err(|e| TrainError::msg(&files.optimizer, e.to_string()))?;
+    let optim = AdamConfig::new().init().load_record(optim_record);
+    Ok(Run { net, optim, state })
+}
+
+/// Why a `state.json` cannot be resumed by this rtd, if it was written by an older one with a
+/// training option since removed (`--gradient-loss`, `--grow`, or a `--no-depth` network):
+/// reading it as if the option were off would continue a different run.
+fn removed_option(state_json: &str) -> Option<String> {
+    let value: serde_json::Value = serde_json::from_str(state_json).ok()?;
+    let options = value.get("options")?;
+    let set = |field: &str| options.get(field).is_some_and(|v| !v.is_null() && v.as_f64() != Some(0.0));
+    for (field, flag) in [("gradient_loss", "--gradient-loss"), ("grow", "--grow")] {
+        if set(field) {
+            return Some(format!("was written with `rtd train {flag}`, which this rtd no longer supports"));
         }
-        let text = std::fs::read_to_string(&files.state).map_err(|e| TrainError::io(&files.state, e))?;
-        let state: TrainState =
-            serde_json::from_str(&text).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
-        if state.options != *options {
-            return Err(TrainError::msg(&files.state, "was written with other training options"));
-        }
-        let record = ModuleRecord::load(&files.weights).map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
-        let net = options
-            .config
-            .init(&device)
-            .try_load_record(record)
-            .map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
-        let optim_record = burn::optim::OptimizerRecord::load(&files.optimizer)
-            .map_err(|e| TrainError::msg(&files.optimizer, e.to_string()))?;
-        let optim = AdamConfig::new().init().load_record(optim_record);
-        (net, optim, state)
-    } else {
-        (
-            initial_net(options, &device)?,
-            AdamConfig::new().init(),
-            TrainState { options: options.clone(), step: 0, history: vec![], losses: vec![] },
-        )
-    };
+    }
+    let config = options.get("config")?.to_string();
+    DenoiserConfig::from_json(&config).err().map(|e| format!("its network was {e}"))
+}
+
+/// The crop sampler over the dataset's training views, and its validation views.
+fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<View>), TrainError> {
     let train_views = load_views(data, false)?;
     let val_views = load_views(data, true)?;
-    if train_views.is_empty() {
-        return Err(TrainError::msg(&data.join("manifest.json"), "has no training views"));
-    }
     let sampler =
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
             .drop_probability(options.guide_drop);
+    Ok((sampler, val_views))
+}
+
+/// Runs optimiser steps from `run.state.step` until `options.steps` or until `progress` is
+/// cancelled, validating on `val_views` and checkpointing into `files` after every epoch.
+fn run_steps(
+    mut run: Run,
+    sampler: &CropSampler,
+    val_views: &[View],
+    files: &RunFiles,
+    options: &TrainOptions,
+    device: &Device,
+    progress: &dyn Progress,
+) -> Result<Run, TrainError> {
     progress.start(options.steps, "train");
-    progress.inc(state.step);
+    progress.inc(run.state.step);
+    let prior_wall = run.state.history.last().map(|h| h.wall_s).unwrap_or(0.0);
+    let session = Instant::now();
     let mut epoch_start = Instant::now();
     let mut epoch_losses = vec![];
-    let prior_wall = state.history.last().map(|h| h.wall_s).unwrap_or(0.0);
-    let session = Instant::now();
-    let (b, s) = (options.batch, options.crop);
-    while state.step < options.steps {
+    while run.state.step < options.steps {
         if progress.cancelled() {
             break;
         }
-        let batch = sampler.batch(options.seed, state.step, b);
-        let x = Tensor::<4>::from_data(TensorData::new(batch.inputs, [b, INPUT_CHANNELS, s, s]), &device);
-        let y = Tensor::<4>::from_data(TensorData::new(batch.targets, [b, 3, s, s]), &device);
-        let out = net.forward(x);
-        let mut loss = training_loss(out.clone(), y.clone(), options.gradient_loss);
-        if options.display_loss > 0.0 {
-            let scale = Tensor::<4>::from_data(TensorData::new(batch.scales, [b, 3, s, s]), &device);
-            loss = loss + display_loss(out, y, scale).mul_scalar(options.display_loss);
-        }
-        let loss_value = loss.clone().into_data().try_into_vec::<f32>().map(|v| v[0]).unwrap_or(f32::NAN);
-        let grads = GradientsParams::from_grads(loss.backward(), &net);
-        net = optim.step(options.learning_rate_at(state.step), net, grads);
-        state.losses.push(loss_value);
-        epoch_losses.push(loss_value as f64);
-        state.step += 1;
+        let batch = sampler.batch(options.seed, run.state.step, options.batch);
+        let (loss, grads) = loss_and_gradients(&run.net, batch, options, device);
+        run.net = run.optim.step(options.learning_rate_at(run.state.step), run.net, grads);
+        run.state.losses.push(loss);
+        epoch_losses.push(loss as f64);
+        run.state.step += 1;
         progress.inc(1);
-        if state.step % options.epoch_steps == 0 || state.step == options.steps {
-            let crops_per_s = (epoch_losses.len() * b) as f64 / epoch_start.elapsed().as_secs_f64();
-            let (den, noisy) = validate(&inference_copy(&net, &options.config)?, &val_views, options.validation_spp)?;
-            let rec = EpochRecord {
-                step: state.step,
+        if run.state.step % options.epoch_steps == 0 || run.state.step == options.steps {
+            let crops_per_s = (epoch_losses.len() * options.batch) as f64 / epoch_start.elapsed().as_secs_f64();
+            let record = EpochRecord {
+                step: run.state.step,
                 train_loss: epoch_losses.iter().sum::<f64>() / epoch_losses.len().max(1) as f64,
-                psnr: den.psnr,
-                ssim: den.ssim,
-                relmse: den.relmse,
-                noisy_psnr: noisy.psnr,
-                noisy_ssim: noisy.ssim,
-                noisy_relmse: noisy.relmse,
+                validation: epoch_validation(&run.net, &options.config, val_views, options.validation_spp)?,
                 crops_per_s,
                 wall_s: prior_wall + session.elapsed().as_secs_f64(),
             };
-            progress.note(&format!(
-                "step {:>6}  loss {:.4}  val PSNR {:.2} dB (noisy {:.2})  SSIM {:.3} ({:.3})  relMSE {:.4} ({:.4})  {:.1} crops/s",
-                rec.step, rec.train_loss, rec.psnr, rec.noisy_psnr, rec.ssim, rec.noisy_ssim, rec.relmse, rec.noisy_relmse, rec.crops_per_s
-            ));
-            state.history.push(rec);
-            checkpoint(&files, &net, &optim, &state)?;
+            progress.note(&epoch_line(&record));
+            run.state.history.push(record);
+            checkpoint(files, &run.net, &run.optim, &run.state)?;
             epoch_losses.clear();
             epoch_start = Instant::now();
         }
     }
-    if state.step >= options.steps {
-        let bytes = net
-            .valid()
-            .into_record()
-            .into_bytes()
-            .map_err(|e| TrainError::msg(&out.join("model.bpk"), e.to_string()))?;
-        save_record(&out.join("model.bpk"), &bytes)?;
-        let cfg = serde_json::to_vec_pretty(&options.config).map_err(|e| TrainError::msg(out, e.to_string()))?;
-        save_record(&out.join("model.json"), &cfg)?;
+    Ok(run)
+}
+
+/// The loss of `net` on `batch` (of `options.batch` crops of side `options.crop`) and its
+/// gradients: [`training_loss`], plus `options.display_loss` × [`display_loss`] when that
+/// weight is not 0.
+fn loss_and_gradients(
+    net: &DenoiserNet,
+    batch: Batch,
+    options: &TrainOptions,
+    device: &Device,
+) -> (f32, GradientsParams) {
+    let (b, s) = (options.batch, options.crop);
+    let x = Tensor::<4>::from_data(TensorData::new(batch.inputs, [b, INPUT_CHANNELS, s, s]), device);
+    let y = Tensor::<4>::from_data(TensorData::new(batch.targets, [b, 3, s, s]), device);
+    let out = net.forward(x);
+    let mut loss = training_loss(out.clone(), y.clone());
+    if options.display_loss > 0.0 {
+        let scale = Tensor::<4>::from_data(TensorData::new(batch.scales, [b, 3, s, s]), device);
+        loss = loss + display_loss(out, y, scale).mul_scalar(options.display_loss);
     }
-    Ok(state)
+    let value = loss.clone().into_data().try_into_vec::<f32>().map(|v| v[0]).unwrap_or(f32::NAN);
+    (value, GradientsParams::from_grads(loss.backward(), net))
+}
+
+/// The scores of `net` on the validation `views` at `spp`, or `None` when there are none.
+fn epoch_validation(
+    net: &DenoiserNet,
+    config: &DenoiserConfig,
+    views: &[View],
+    spp: u32,
+) -> Result<Option<ValidationScores>, TrainError> {
+    if views.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(validation_scores(&inference_copy(net, config)?, views, spp)?))
+}
+
+/// The progress line of a finished epoch.
+fn epoch_line(r: &EpochRecord) -> String {
+    let validation = match &r.validation {
+        Some(v) => format!(
+            "val PSNR {:.2} dB (noisy {:.2})  SSIM {:.3} ({:.3})  relMSE {:.4} ({:.4})",
+            v.psnr, v.noisy_psnr, v.ssim, v.noisy_ssim, v.relmse, v.noisy_relmse
+        ),
+        None => "no validation views".to_string(),
+    };
+    format!("step {:>6}  loss {:.4}  {validation}  {:.1} crops/s", r.step, r.train_loss, r.crops_per_s)
 }
 
 /// Writes weights, optimiser state and `state.json`, each atomically, state last.
@@ -494,6 +607,15 @@ fn checkpoint(
     save_record(&files.state, &text)
 }
 
+/// Writes the trained network as `model.bpk` (weights) + `model.json` (`config`) into `out`.
+fn save_model(out: &Path, net: &DenoiserNet, config: &DenoiserConfig) -> Result<(), TrainError> {
+    let weights = out.join("model.bpk");
+    let bytes = net.valid().into_record().into_bytes().map_err(|e| TrainError::msg(&weights, e.to_string()))?;
+    save_record(&weights, &bytes)?;
+    let cfg = serde_json::to_vec_pretty(config).map_err(|e| TrainError::msg(out, e.to_string()))?;
+    save_record(&out.join("model.json"), &cfg)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -509,22 +631,16 @@ mod tests {
     }
 
     #[test]
-    fn gradient_loss_penalises_a_blurred_edge_and_not_an_offset() {
+    fn training_loss_is_the_mean_absolute_error() {
         // A step edge 0 → 1 across 4 pixels, a blurred copy, and a copy offset by a constant.
         let edge = image(&[0.0, 0.0, 1.0, 1.0]);
         let blurred = image(&[0.0, 0.25, 0.75, 1.0]);
         let offset = image(&[0.25, 0.25, 1.25, 1.25]);
-        // Plain L1: 0.125 for the blurred copy, 0.25 for the offset one.
-        let l1 = |a: &Tensor<4>, b: &Tensor<4>| value(training_loss(a.clone(), b.clone(), 0.0));
+        let l1 = |a: &Tensor<4>, b: &Tensor<4>| value(training_loss(a.clone(), b.clone()));
         assert!((l1(&blurred, &edge) - 0.125).abs() < 1e-6);
         assert!((l1(&offset, &edge) - 0.25).abs() < 1e-6);
-        // The gradient term: the blur's error (0, 0.25, −0.25, 0) differs along x by
-        // (0.25, −0.5, 0.25), mean 1/3; the offset's error is constant; the rows are equal, so
-        // nothing along y.
-        let g = |a: &Tensor<4>, b: &Tensor<4>| value(training_loss(a.clone(), b.clone(), 1.0)) - l1(a, b);
-        assert!((g(&blurred, &edge) - 1.0 / 3.0).abs() < 1e-6, "{}", g(&blurred, &edge));
-        assert!(g(&offset, &edge).abs() < 1e-6);
-        assert_eq!(value(training_loss(edge.clone(), edge, 2.0)), 0.0);
+        assert!((l1(&edge, &offset) - 0.25).abs() < 1e-6);
+        assert_eq!(l1(&edge, &edge), 0.0);
     }
 
     #[test]
@@ -555,5 +671,146 @@ mod tests {
         assert!(grad[2] < 0.0, "0.004 is darker than its 0.01 target: the loss falls as it rises");
         // Equal images: zero loss.
         assert_eq!(value(display_loss(tensor(&target), tensor(&target), tensor(&scale))), 0.0);
+    }
+
+    /// A manifest of two `size`² views, one for training and one for validation, at every
+    /// stored sample count.
+    fn manifest(size: u32) -> Manifest {
+        let view = |validation| crate::dataset::ViewRecord {
+            file: String::new(),
+            scene: 0,
+            view: 0,
+            layout: crate::scenegen::Layout::ClosedRoom,
+            validation,
+            reference_spp: 16,
+            reference_relmse: 0.0,
+            seconds: 0.0,
+        };
+        Manifest {
+            options: crate::dataset::DatasetOptions::default().size(size),
+            noisy_spp: crate::dataset::NOISY_SPP.to_vec(),
+            views: vec![view(false), view(true)],
+            rejected: vec![],
+        }
+    }
+
+    /// The error message of validating `options` against `manifest`, checked to be an
+    /// [`TrainError::InvalidOptions`] naming the dataset.
+    fn refusal(options: &TrainOptions, manifest: &Manifest) -> String {
+        match options.validate(Path::new("tiny-data"), manifest) {
+            Err(e @ TrainError::InvalidOptions { .. }) => {
+                let text = e.to_string();
+                assert!(text.starts_with("tiny-data: ") && !text.contains('\n'), "{text}");
+                text
+            }
+            other => panic!("expected InvalidOptions, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn options_are_checked_against_the_dataset() {
+        let m = manifest(24);
+        // Crops up to the views' side, in steps of the network's alignment (4 for the U-Net).
+        for crop in [4, 16, 24] {
+            assert!(TrainOptions::default().batch(2, crop).validate(Path::new("d"), &m).is_ok(), "{crop}");
+        }
+        let e = refusal(&TrainOptions::default().batch(2, 32), &m);
+        assert!(e.contains("crop side 32 px is larger than the dataset's 24x24 px views"), "{e}");
+        let e = refusal(&TrainOptions::default().batch(2, 18), &m);
+        assert!(e.contains("crop side 18 px is not a positive multiple of 4"), "{e}");
+        assert!(refusal(&TrainOptions::default().batch(2, 0), &m).contains("crop side 0 px"));
+        // A two-level network aligns to 2, so 18 is fine for it.
+        let two = TrainOptions::default().config(DenoiserConfig::new(vec![8, 8])).batch(2, 18);
+        assert!(two.validate(Path::new("d"), &m).is_ok());
+        let none = TrainOptions::default().config(DenoiserConfig::new(vec![])).batch(2, 16);
+        assert!(refusal(&none, &m).contains("no resolution levels"));
+        // Counts, rates, weights and probabilities.
+        let ok = TrainOptions::default().batch(2, 16);
+        assert!(refusal(&ok.clone().batch(0, 16), &m).contains("batch size is 0"));
+        assert!(refusal(&ok.clone().steps(0), &m).contains("step count is 0"));
+        assert!(refusal(&ok.clone().epoch_steps(0), &m).contains("epoch length is 0"));
+        for lr in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+            assert!(refusal(&ok.clone().learning_rate(lr), &m).contains("learning rate"), "{lr}");
+        }
+        for w in [-1.0, f32::NAN, f32::INFINITY] {
+            let o = TrainOptions { display_loss: w, ..ok.clone() };
+            assert!(refusal(&o, &m).contains("display loss weight"), "{w}");
+        }
+        for p in [-0.1, 1.5, f32::NAN] {
+            let o = TrainOptions { guide_drop: p, ..ok.clone() };
+            assert!(refusal(&o, &m).contains("guide drop probability"), "{p}");
+        }
+        assert!(TrainOptions { guide_drop: 1.0, ..ok.clone() }.validate(Path::new("d"), &m).is_ok());
+        // Sample counts the dataset lacks, for training or for validation.
+        let e = refusal(&ok.clone().spp_levels(Some(vec![3, 8])), &m);
+        assert!(e.contains("sample counts [3]") && e.contains("[1, 2, 4, 8, 16, 32, 64]"), "{e}");
+        assert!(refusal(&ok.clone().spp_levels(Some(vec![])), &m).contains("empty"));
+        let e = refusal(&TrainOptions { validation_spp: 5, ..ok.clone() }, &m);
+        assert!(e.contains("validation sample count 5"), "{e}");
+        // A dataset of validation views alone has nothing to train on.
+        let mut held_out = manifest(24);
+        held_out.views.retain(|v| v.validation);
+        assert!(refusal(&ok, &held_out).contains("no training views"));
+    }
+
+    /// `state.json` files written before `validation` was an object keep their flat scores,
+    /// so older runs resume; a noisy PSNR of 0 dB there meant no validation views.
+    #[test]
+    fn epoch_records_of_older_runs_still_read() {
+        let old = r#"{"step":200,"train_loss":0.05,"psnr":30.5,"ssim":0.9,"relmse":0.01,"noisy_psnr":24.0,
+            "noisy_ssim":0.5,"noisy_relmse":0.2,"crops_per_s":15.0,"wall_s":60.0}"#;
+        let r: EpochRecord = serde_json::from_str(old).unwrap();
+        let scores = ValidationScores {
+            psnr: 30.5,
+            ssim: 0.9,
+            relmse: 0.01,
+            noisy_psnr: 24.0,
+            noisy_ssim: 0.5,
+            noisy_relmse: 0.2,
+        };
+        assert_eq!(r.validation, Some(scores));
+        assert_eq!((r.step, r.train_loss, r.crops_per_s, r.wall_s), (200, 0.05, 15.0, 60.0));
+        let unvalidated = r#"{"step":20,"train_loss":0.1,"psnr":0.0,"ssim":0.0,"relmse":0.0,"noisy_psnr":0.0,
+            "noisy_ssim":0.0,"noisy_relmse":0.0,"crops_per_s":1.0,"wall_s":1.0}"#;
+        assert_eq!(serde_json::from_str::<EpochRecord>(unvalidated).unwrap().validation, None);
+        // Records written now nest the scores (or write null), and read back as they were.
+        let unscored = EpochRecord { validation: None, ..r.clone() };
+        let (text, unscored_text) = (serde_json::to_string(&r).unwrap(), serde_json::to_string(&unscored).unwrap());
+        assert!(text.contains(r#""validation":{"psnr":30.5,"#), "{text}");
+        assert!(unscored_text.contains(r#""validation":null"#) && !unscored_text.contains("psnr"), "{unscored_text}");
+        assert_eq!(serde_json::from_str::<EpochRecord>(&text).unwrap(), r);
+        assert_eq!(serde_json::from_str::<EpochRecord>(&unscored_text).unwrap(), unscored);
+    }
+
+    /// A whole `state.json` as rtd wrote it before the architecture clean-up, with the fields
+    /// of the removed options at their "off" values: it reads, equals today's defaults, and
+    /// resumes; with a removed option in use it is refused.
+    #[test]
+    fn older_run_states_resume_unless_they_used_a_removed_option() {
+        let state = |gradient_loss: &str, grow: &str, depth: &str| {
+            format!(
+                r#"{{"options":{{"config":{{"channels":[24,48,64],"level_blocks":null,"demodulate":null,
+                "depth":{depth},"exposure_key":null,"bottleneck_blocks":2,"prong":5,"input_channels":16}},
+                "seed":1,"steps":3000,"batch":8,"crop":64,"learning_rate":0.002,"epoch_steps":200,
+                "validation_spp":8,"init":null,"gradient_loss":{gradient_loss},"display_loss":0.0,"grow":{grow},
+                "spp_levels":null,"guide_drop":0.3}},"step":200,"history":[{{"step":200,"train_loss":0.05,
+                "psnr":30.5,"ssim":0.9,"relmse":0.01,"noisy_psnr":24.0,"noisy_ssim":0.5,"noisy_relmse":0.2,
+                "crops_per_s":15.0,"wall_s":60.0}}],"losses":[0.05]}}"#
+            )
+        };
+        let old = state("0.0", "null", "null");
+        let parsed: TrainState = serde_json::from_str(&old).unwrap();
+        assert_eq!(parsed.options, TrainOptions::default());
+        assert_eq!(parsed.history[0].validation.map(|v| v.noisy_psnr), Some(24.0));
+        assert_eq!(removed_option(&old), None);
+        let e = removed_option(&state("0.5", "null", "null")).unwrap();
+        assert!(e.contains("--gradient-loss"), "{e}");
+        let e = removed_option(&state("0.0", r#"{"channels":64,"blocks":2}"#, "null")).unwrap();
+        assert!(e.contains("--grow"), "{e}");
+        let e = removed_option(&state("0.0", "null", "false")).unwrap();
+        assert!(e.contains("--no-depth"), "{e}");
+        // A state written now has none of those fields.
+        let now = TrainState { options: TrainOptions::default(), step: 0, history: vec![], losses: vec![] };
+        assert_eq!(removed_option(&serde_json::to_string(&now).unwrap()), None);
     }
 }

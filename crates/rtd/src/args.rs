@@ -42,15 +42,6 @@ pub enum Command {
     Train(TrainArgs),
 }
 
-/// Which network to train.
-#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
-pub enum VariantArg {
-    /// Three-level U-Net of inception blocks (24/48/64 channels): the shipped model.
-    Unet,
-    /// Inception blocks at full resolution only (32 channels, dilated).
-    SingleScale,
-}
-
 /// `rtd train` options.
 #[derive(Debug, Clone, Args)]
 pub struct TrainArgs {
@@ -60,13 +51,37 @@ pub struct TrainArgs {
     /// Output directory: checkpoints, state.json, curves.png, and model.bpk + model.json at the end.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Steps, batches, crops, learning rate and seed.
+    #[command(flatten)]
+    pub schedule: TrainScheduleArgs,
+    /// The network: a model to fine-tune and the input encoding.
+    #[command(flatten)]
+    pub model: TrainModelArgs,
+    /// The loss and the inputs it is computed on.
+    #[command(flatten)]
+    pub loss: TrainLossArgs,
+    /// Continue the run in --output after an interruption.
+    #[arg(long)]
+    pub resume: bool,
+    /// Smoke run: make a tiny dataset in --data and train a few steps on it.
+    #[arg(long)]
+    pub quick: bool,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `rtd train`'s schedule: how many steps of how many crops of which size, at which rate.
+#[derive(Debug, Clone, Args)]
+pub struct TrainScheduleArgs {
     /// Optimiser steps.
     #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
     pub steps: u64,
     /// Crops per batch.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub batch: u32,
-    /// Crop side in pixels (a multiple of 4, at most the dataset's image size).
+    /// Crop side in pixels (a multiple of the network's alignment, 4 for the U-Net, and at most
+    /// the dataset's image size).
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=1024))]
     pub crop: u32,
     /// Steps per epoch (validation + checkpoint after each).
@@ -75,39 +90,33 @@ pub struct TrainArgs {
     /// Seed for weights and batches.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Network variant.
-    #[arg(long, value_enum, default_value_t = VariantArg::Unet)]
-    pub variant: VariantArg,
     /// Peak learning rate (warm-up then cosine decay).
     #[arg(long, default_value_t = 2e-3, value_parser = positive_rate)]
     pub lr: f64,
+}
+
+/// `rtd train`'s network: the shipped U-Net from random weights, or a model to fine-tune, with
+/// the input encoding it is trained for.
+#[derive(Debug, Clone, Args)]
+pub struct TrainModelArgs {
+    /// Fine-tune: start from this model's weights (.bpk with its .json beside it); the network
+    /// is the one its config describes.
+    #[arg(long)]
+    pub init: Option<PathBuf>,
     /// Divide colour by the albedo before the network and multiply it back after (saved in the
     /// model's config; with --init, the initial model may lack it).
     #[arg(long)]
     pub demodulate: bool,
-    /// Leave the depth layer out of the network's input, reading AO alone of the AO + depth pair
-    /// (saved in the model's config; with --init, the initial model may read depth)
-    #[arg(long)]
-    pub no_depth: bool,
     /// Exposure the log-average luminance is mapped to before the log transfer (saved in the
     /// model's config; default 0.18, or the --init model's): larger keys give dark regions more
     /// of the transfer's range and of the loss
     #[arg(long, value_parser = parse_key)]
     pub exposure_key: Option<f32>,
-    /// Fine-tune: start from this model's weights (.bpk with its .json beside it); the network
-    /// is the one its config describes.
-    #[arg(long)]
-    pub init: Option<PathBuf>,
-    /// With --init: first grow its network by a coarser level of this many channels, set up so
-    /// that the grown network computes the same function (its old bottleneck stays in place).
-    #[arg(long, requires = "init", value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub grow: Option<u32>,
-    /// Inception blocks at the level that --grow adds.
-    #[arg(long, default_value_t = 2, requires = "grow", value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub grow_blocks: u32,
-    /// Weight of an extra L1 term on the error's neighbour differences (sharper edges; 0: off).
-    #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
-    pub gradient_loss: f32,
+}
+
+/// `rtd train`'s loss and the inputs its crops carry.
+#[derive(Debug, Clone, Args)]
+pub struct TrainLossArgs {
     /// Weight of an extra squared-error term on the display transform the validation PSNR is
     /// measured on (linear colour clamped to [0, 1], sRGB-encoded; 0: off).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
@@ -120,15 +129,6 @@ pub struct TrainArgs {
     /// AO + depth layers, so the model also serves colour + guide RGB alone.
     #[arg(long, default_value_t = rtd_train::data::DROP_PROBABILITY, value_parser = probability)]
     pub guide_drop: f32,
-    /// Continue the run in --output after an interruption.
-    #[arg(long)]
-    pub resume: bool,
-    /// Smoke run: make a tiny dataset in --data and train a few steps on it.
-    #[arg(long)]
-    pub quick: bool,
-    /// Hide the progress bar.
-    #[arg(long, short)]
-    pub quiet: bool,
 }
 
 /// `rtd denoise` options.

@@ -1,10 +1,12 @@
 //! `rtd datagen` and `rtd train`: thin wrappers over `rtd_train`.
 
+use std::path::Path;
+
 use rtd_denoise::DenoiserConfig;
 use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions, Split};
-use rtd_train::train::{GrowLevel, TrainOptions, TrainState};
+use rtd_train::train::{EpochRecord, TrainOptions, TrainState};
 
-use crate::args::{DatagenArgs, SplitArg, TrainArgs, VariantArg};
+use crate::args::{DatagenArgs, SplitArg, TrainArgs};
 use crate::progress::TaskBar;
 
 /// Runs `rtd datagen`.
@@ -56,45 +58,19 @@ fn bar_cancelled(bar: &TaskBar) -> bool {
     rtd_image::Progress::cancelled(bar)
 }
 
-/// Runs `rtd train` and returns the final state.
+/// Runs `rtd train` and returns the final state: the options from `args` (`--quick` first makes
+/// its tiny dataset and shrinks the run), the library's training, then the curves and a summary.
+/// The library checks the options against the dataset before it writes anything.
 pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
     let bar = TaskBar::new(args.quiet);
-    let config = match (&args.init, args.variant) {
-        (Some(model), _) => rtd_denoise::Denoiser::load(model)?.config().clone(),
-        (None, VariantArg::Unet) => DenoiserConfig::unet(),
-        (None, VariantArg::SingleScale) => DenoiserConfig::single_scale(),
-    };
-    let config = if args.demodulate { config.with_demodulate(Some(true)) } else { config };
-    let config = if args.no_depth { config.with_depth(Some(false)) } else { config };
-    let config = match args.exposure_key {
-        Some(k) => config.with_exposure_key(Some(k)),
-        None => config,
-    };
-    let grow = args.grow.map(|c| GrowLevel { channels: c as usize, blocks: args.grow_blocks as usize });
-    let config = grow.map_or(config.clone(), |g| g.grown(&config));
-    let mut options = TrainOptions::default()
-        .config(config)
-        .learning_rate(args.lr)
-        .init(args.init.clone())
-        .grow(grow)
-        .gradient_loss(args.gradient_loss)
-        .display_loss(args.display_loss)
-        .spp_levels((!args.spp_levels.is_empty()).then(|| args.spp_levels.clone()))
-        .guide_drop(args.guide_drop)
-        .seed(args.seed)
-        .steps(args.steps)
-        .batch(args.batch as usize, args.crop as usize)
-        .epoch_steps(args.epoch_steps);
+    let mut options = train_options(args)?;
     if args.quick {
         // A tiny dataset (one training and one validation scene at 32², 64-spp references).
         let data =
             DatasetOptions::default().scenes(2).views_per_scene(1).size(32).reference_spp(64).validation_every(2);
         generate_dataset(&args.data, &data, &bar)?;
-        options = options.batch(4, 32).steps(args.steps.min(48)).epoch_steps(args.epoch_steps.min(16));
-    }
-    let crop = options.crop as u32;
-    if crop % 4 != 0 {
-        anyhow::bail!("--crop {crop} must be a multiple of 4");
+        let schedule = &args.schedule;
+        options = options.batch(4, 32).steps(schedule.steps.min(48)).epoch_steps(schedule.epoch_steps.min(16));
     }
     let state = rtd_train::train::train(&args.data, &args.output, &options, args.resume, &bar)?;
     bar.finish();
@@ -103,17 +79,47 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
         anyhow::bail!("interrupted at step {}: the checkpoint is kept; rerun with --resume to continue", state.step);
     }
     if let Some(last) = state.history.last() {
-        let validation = match last.has_validation() {
-            true => format!("validation PSNR {:.2} dB vs noisy {:.2} dB", last.psnr, last.noisy_psnr),
-            false => "no validation views in the dataset".to_string(),
-        };
-        eprintln!(
-            "trained {} steps in {:.0} s ({:.1} crops/s): {validation}; model in {}",
-            state.step,
-            last.wall_s,
-            last.crops_per_s,
-            args.output.join("model.bpk").display()
-        );
+        eprintln!("{}", summary(state.step, last, &args.output));
     }
     Ok(state)
+}
+
+/// The library's options for `args`: the network is `--init`'s (its config read from the model
+/// file) or the shipped U-Net, with `--demodulate` and `--exposure-key` applied.
+fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
+    let (schedule, model, loss) = (&args.schedule, &args.model, &args.loss);
+    let config = match &model.init {
+        Some(path) => rtd_denoise::Denoiser::load(path)?.config().clone(),
+        None => DenoiserConfig::unet(),
+    };
+    let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
+    let config = match model.exposure_key {
+        Some(k) => config.with_exposure_key(Some(k)),
+        None => config,
+    };
+    Ok(TrainOptions::default()
+        .config(config)
+        .learning_rate(schedule.lr)
+        .init(model.init.clone())
+        .display_loss(loss.display_loss)
+        .spp_levels((!loss.spp_levels.is_empty()).then(|| loss.spp_levels.clone()))
+        .guide_drop(loss.guide_drop)
+        .seed(schedule.seed)
+        .steps(schedule.steps)
+        .batch(schedule.batch as usize, schedule.crop as usize)
+        .epoch_steps(schedule.epoch_steps))
+}
+
+/// The line printed after a finished run of `steps` steps whose last epoch is `last`.
+fn summary(steps: u64, last: &EpochRecord, output: &Path) -> String {
+    let validation = match &last.validation {
+        Some(v) => format!("validation PSNR {:.2} dB vs noisy {:.2} dB", v.psnr, v.noisy_psnr),
+        None => "no validation views in the dataset".to_string(),
+    };
+    format!(
+        "trained {steps} steps in {:.0} s ({:.1} crops/s): {validation}; model in {}",
+        last.wall_s,
+        last.crops_per_s,
+        output.join("model.bpk").display()
+    )
 }

@@ -62,7 +62,7 @@ pub struct GenCamera {
 pub struct GenScene {
     /// Meshes with their material indices.
     pub objects: Vec<(Mesh, usize)>,
-    /// Materials.
+    /// Materials, indexed by the objects' material indices.
     pub materials: Vec<GenMaterial>,
     /// Textures as sRGB images.
     pub textures: Vec<image::RgbImage>,

@@ -237,7 +237,158 @@ impl Mesh {
     }
 }
 
-/// Generates scene number `index` of the dataset seeded by `seed`.
+/// The room's half width and depth, its height and the lights' total power: drawn first for
+/// every layout (an open ground uses them to place its objects and cameras).
+#[derive(Clone, Copy)]
+struct Room {
+    hw: f32,
+    hd: f32,
+    height: f32,
+    power_scale: f32,
+}
+
+/// The room cuboid `room` split into its floor (face 3) and the other faces: (rest, floor).
+fn split_floor(room: &Mesh) -> (Mesh, Mesh) {
+    let (mut rest, mut floor_mesh) = (Mesh::default(), Mesh::default());
+    for (f, chunk) in room.indices.chunks(6).enumerate() {
+        let mut part = Mesh::default();
+        let base = (f * 4) as u32;
+        for i in 0..4 {
+            let k = (base + i) as usize;
+            part.positions.push(room.positions[k]);
+            part.normals.push(room.normals[k]);
+            part.uvs.push(room.uvs[k]);
+        }
+        part.indices = chunk.iter().map(|i| i - base).collect();
+        if f == 3 {
+            floor_mesh.append(&part)
+        } else {
+            rest.append(&part)
+        }
+    }
+    (rest, floor_mesh)
+}
+
+impl Builder {
+    /// A closed box room with its own floor material and one to four ceiling lights,
+    /// sometimes all behind baffles.
+    fn closed_room(&mut self, room: Room) {
+        let Room { hw, hd, height, power_scale } = room;
+        let walls = self.surface_material(0.4);
+        let floor = self.surface_material(0.7);
+        let cuboid =
+            Mesh::cuboid(Vec3::new(0.0, height * 0.5, 0.0), Vec3::new(hw, height * 0.5, hd), Mat3::IDENTITY, true, 3.0);
+        // The floor (face 3 of the cuboid) gets its own material: split it off.
+        let (rest, floor_mesh) = split_floor(&cuboid);
+        self.scene.objects.push((rest, walls));
+        self.scene.objects.push((floor_mesh, floor));
+        let n_lights = self.rng.random_range(1..=4);
+        let baffled = self.rng.random::<f32>() < 0.25;
+        for _ in 0..n_lights {
+            let size = if self.rng.random::<f32>() < 0.3 {
+                self.rng.random_range(0.05..0.15)
+            } else {
+                self.rng.random_range(0.4..1.6)
+            };
+            let c = Vec3::new(
+                self.rng.random_range(-hw * 0.7..hw * 0.7),
+                height - 0.01,
+                self.rng.random_range(-hd * 0.7..hd * 0.7),
+            );
+            self.ceiling_light(c, size, power_scale / n_lights as f32, baffled);
+        }
+    }
+
+    /// A floor under a sky dome (with a sun 70% of the time): 12 units a side for
+    /// [`Layout::OpenGround`], the room's size with a back and a side wall for
+    /// [`Layout::HalfOpenRoom`].
+    fn open_layout(&mut self, room: Room, layout: Layout) {
+        let Room { hw, hd, .. } = room;
+        let floor = self.surface_material(0.8);
+        let ext = if layout == Layout::OpenGround { 12.0 } else { hw.max(hd) };
+        self.scene.objects.push((
+            Mesh::quad(
+                Vec3::new(-ext, 0.0, ext),
+                Vec3::new(ext, 0.0, ext),
+                Vec3::new(ext, 0.0, -ext),
+                Vec3::new(-ext, 0.0, -ext),
+                ext,
+            ),
+            floor,
+        ));
+        if layout == Layout::HalfOpenRoom {
+            self.half_open_walls(room);
+        }
+        let sun = self.rng.random::<f32>() < 0.7;
+        self.sky(30.0, sun);
+    }
+
+    /// The back and side walls of a half-open room, and half the time a ceiling-height light.
+    fn half_open_walls(&mut self, room: Room) {
+        let Room { hw, hd, height, power_scale } = room;
+        let wall = self.surface_material(0.5);
+        self.scene.objects.push((
+            Mesh::quad(
+                Vec3::new(-hw, 0.0, -hd),
+                Vec3::new(hw, 0.0, -hd),
+                Vec3::new(hw, height, -hd),
+                Vec3::new(-hw, height, -hd),
+                2.0,
+            ),
+            wall,
+        ));
+        self.scene.objects.push((
+            Mesh::quad(
+                Vec3::new(-hw, 0.0, hd),
+                Vec3::new(-hw, 0.0, -hd),
+                Vec3::new(-hw, height, -hd),
+                Vec3::new(-hw, height, hd),
+                2.0,
+            ),
+            wall,
+        ));
+        if self.rng.random::<bool>() {
+            let size = self.rng.random_range(0.1..1.0);
+            let c = Vec3::new(
+                self.rng.random_range(-hw * 0.5..hw * 0.5),
+                height * 0.9,
+                self.rng.random_range(-hd * 0.5..hd * 0.5),
+            );
+            self.ceiling_light(c, size, power_scale * 0.5, false);
+        }
+    }
+
+    /// Three to eight random objects within `extent` of the centre; returns where they stand.
+    fn objects(&mut self, extent: f32) -> Vec<Vec3> {
+        let mut targets = vec![];
+        for _ in 0..self.rng.random_range(3..9) {
+            targets.push(self.object(extent));
+        }
+        targets
+    }
+
+    /// `views` cameras, each looking at a point above one of the `targets` from a random
+    /// direction and distance, kept inside the room unless the ground is open.
+    fn cameras(&mut self, targets: &[Vec3], room: Room, layout: Layout, views: usize) {
+        let Room { hw, hd, height, .. } = room;
+        for _ in 0..views {
+            let t = targets[self.rng.random_range(0..targets.len())] + Vec3::Y * self.rng.random_range(0.1..0.6);
+            let ang = self.rng.random::<f32>() * TAU;
+            let dist = self.rng.random_range(1.2..(hw.min(hd) * 1.6).max(1.5));
+            let mut from = t + Vec3::new(ang.cos() * dist, self.rng.random_range(0.2..1.5), ang.sin() * dist);
+            if layout != Layout::OpenGround {
+                let (lo, hi) = (Vec3::new(-hw + 0.1, 0.2, -hd + 0.1), Vec3::new(hw - 0.1, height - 0.2, hd - 0.1));
+                from = from.clamp(lo, hi);
+            }
+            let yfov_degrees = self.rng.random_range(30.0..75.0);
+            self.scene.cameras.push(GenCamera { from, at: t, yfov_degrees });
+        }
+    }
+}
+
+/// Generates scene number `index` of the dataset seeded by `seed`: the layout and room size,
+/// then the layout's surfaces and lights, the objects and the cameras, in that order of random
+/// draws.
 pub fn generate_scene(seed: u64, index: u64, options: &SceneGenOptions) -> (GenScene, Layout) {
     let mut b = Builder {
         rng: ChaCha8Rng::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index),
@@ -252,117 +403,13 @@ pub fn generate_scene(seed: u64, index: u64, options: &SceneGenOptions) -> (GenS
     let (hw, hd) = (b.rng.random_range(1.5..3.0f32), b.rng.random_range(1.5..3.0f32));
     let height = b.rng.random_range(2.4..3.5f32);
     let power_scale = b.rng.random_range(20.0..60.0f32);
+    let room = Room { hw, hd, height, power_scale };
     match layout {
-        Layout::ClosedRoom => {
-            let walls = b.surface_material(0.4);
-            let floor = b.surface_material(0.7);
-            let room = Mesh::cuboid(
-                Vec3::new(0.0, height * 0.5, 0.0),
-                Vec3::new(hw, height * 0.5, hd),
-                Mat3::IDENTITY,
-                true,
-                3.0,
-            );
-            // The floor (face 3 of the cuboid) gets its own material: split it off.
-            let (mut rest, mut floor_mesh) = (Mesh::default(), Mesh::default());
-            for (f, chunk) in room.indices.chunks(6).enumerate() {
-                let mut part = Mesh::default();
-                let base = (f * 4) as u32;
-                for i in 0..4 {
-                    let k = (base + i) as usize;
-                    part.positions.push(room.positions[k]);
-                    part.normals.push(room.normals[k]);
-                    part.uvs.push(room.uvs[k]);
-                }
-                part.indices = chunk.iter().map(|i| i - base).collect();
-                if f == 3 {
-                    floor_mesh.append(&part)
-                } else {
-                    rest.append(&part)
-                }
-            }
-            b.scene.objects.push((rest, walls));
-            b.scene.objects.push((floor_mesh, floor));
-            let n_lights = b.rng.random_range(1..=4);
-            let baffled = b.rng.random::<f32>() < 0.25;
-            for _ in 0..n_lights {
-                let size = if b.rng.random::<f32>() < 0.3 {
-                    b.rng.random_range(0.05..0.15)
-                } else {
-                    b.rng.random_range(0.4..1.6)
-                };
-                let c = Vec3::new(
-                    b.rng.random_range(-hw * 0.7..hw * 0.7),
-                    height - 0.01,
-                    b.rng.random_range(-hd * 0.7..hd * 0.7),
-                );
-                b.ceiling_light(c, size, power_scale / n_lights as f32, baffled);
-            }
-        }
-        Layout::HalfOpenRoom | Layout::OpenGround => {
-            let floor = b.surface_material(0.8);
-            let ext = if layout == Layout::OpenGround { 12.0 } else { hw.max(hd) };
-            b.scene.objects.push((
-                Mesh::quad(
-                    Vec3::new(-ext, 0.0, ext),
-                    Vec3::new(ext, 0.0, ext),
-                    Vec3::new(ext, 0.0, -ext),
-                    Vec3::new(-ext, 0.0, -ext),
-                    ext,
-                ),
-                floor,
-            ));
-            if layout == Layout::HalfOpenRoom {
-                let wall = b.surface_material(0.5);
-                b.scene.objects.push((
-                    Mesh::quad(
-                        Vec3::new(-hw, 0.0, -hd),
-                        Vec3::new(hw, 0.0, -hd),
-                        Vec3::new(hw, height, -hd),
-                        Vec3::new(-hw, height, -hd),
-                        2.0,
-                    ),
-                    wall,
-                ));
-                b.scene.objects.push((
-                    Mesh::quad(
-                        Vec3::new(-hw, 0.0, hd),
-                        Vec3::new(-hw, 0.0, -hd),
-                        Vec3::new(-hw, height, -hd),
-                        Vec3::new(-hw, height, hd),
-                        2.0,
-                    ),
-                    wall,
-                ));
-                if b.rng.random::<bool>() {
-                    let size = b.rng.random_range(0.1..1.0);
-                    let c = Vec3::new(
-                        b.rng.random_range(-hw * 0.5..hw * 0.5),
-                        height * 0.9,
-                        b.rng.random_range(-hd * 0.5..hd * 0.5),
-                    );
-                    b.ceiling_light(c, size, power_scale * 0.5, false);
-                }
-            }
-            let sun = b.rng.random::<f32>() < 0.7;
-            b.sky(30.0, sun);
-        }
+        Layout::ClosedRoom => b.closed_room(room),
+        Layout::HalfOpenRoom | Layout::OpenGround => b.open_layout(room, layout),
     }
-    let mut targets = vec![];
-    for _ in 0..b.rng.random_range(3..9) {
-        targets.push(b.object(hw.min(hd) * 0.6));
-    }
-    for _ in 0..options.views {
-        let t = targets[b.rng.random_range(0..targets.len())] + Vec3::Y * b.rng.random_range(0.1..0.6);
-        let ang = b.rng.random::<f32>() * TAU;
-        let dist = b.rng.random_range(1.2..(hw.min(hd) * 1.6).max(1.5));
-        let mut from = t + Vec3::new(ang.cos() * dist, b.rng.random_range(0.2..1.5), ang.sin() * dist);
-        if layout != Layout::OpenGround {
-            from = from.clamp(Vec3::new(-hw + 0.1, 0.2, -hd + 0.1), Vec3::new(hw - 0.1, height - 0.2, hd - 0.1));
-        }
-        let yfov_degrees = b.rng.random_range(30.0..75.0);
-        b.scene.cameras.push(GenCamera { from, at: t, yfov_degrees });
-    }
+    let targets = b.objects(hw.min(hd) * 0.6);
+    b.cameras(&targets, room, layout, options.views);
     (b.scene, layout)
 }
 
