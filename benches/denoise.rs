@@ -6,7 +6,7 @@ use std::path::Path;
 
 use criterion::{criterion_group, Criterion, Throughput};
 use rtd::denoise::filter::GuidedFilter;
-use rtd::denoise::{DenoiseInput, Denoiser};
+use rtd::denoise::Denoiser;
 use rtd::guide::{GuidePass, GuideSettings};
 use rtd::render::{PathTracer, RenderScene, RenderSettings};
 
@@ -30,7 +30,7 @@ fn denoise(c: &mut Criterion) {
     tracer.render(&mut film, 8).unwrap();
     let color = film.beauty();
     let g = GuidePass::render(&scene.scene, &scene.bvh, &cam, &GuideSettings::new(n, n)).unwrap();
-    let input = DenoiseInput::with_guide_pass(&color, &g);
+    let input = rtd::pipeline::denoise_input(&color, &g);
     let mut group = c.benchmark_group(format!("denoise_{n}x{n}"));
     group.sample_size(10).throughput(Throughput::Elements((n * n) as u64));
     let fast = Denoiser::builtin().unwrap();

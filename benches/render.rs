@@ -127,7 +127,7 @@ fn overhead_ratio(seconds: f64) {
     let prepared = RenderScene::new(s.clone());
     let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(256, 256)).unwrap();
     let mut film = tracer.film();
-    let stats = tracer.render_for(&mut film, Duration::from_secs_f64(seconds), &rtd::render::Silent).unwrap();
+    let stats = tracer.render_for(&mut film, Duration::from_secs_f64(seconds), &rtd::image::Quiet).unwrap();
     let integrator = stats.rays as f64 / stats.seconds;
     let rays = camera_rays(&s, 1 << 16);
     let bvh = &prepared.bvh;

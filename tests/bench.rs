@@ -2,28 +2,31 @@
 
 use std::path::Path;
 
-use rtd::bench::etrt::write_etrt;
-use rtd::bench::{run_etrt, EtrtOptions, Quiet};
+use rtd::bench::report_files::write_etrt;
+use rtd::bench::{run_etrt, EtrtOptions};
 use rtd::denoise::Denoiser;
+use rtd::image::Quiet;
+use rtd::pipeline::{CameraChoice, SceneView};
 
 #[test]
 fn etrt_report_has_every_image_and_consistent_numbers() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
+    let scene = SceneView::load(&path, &CameraChoice::Default, None).unwrap();
     let options =
         EtrtOptions { spp: 2, width: 32, height: 32, reference_spp: 32, max_plain_factor: 4.0, ..Default::default() };
     let model = Denoiser::builtin().unwrap();
     let (report, images) = run_etrt(&scene, &model, &options, None, &dir.path().join("cache"), &Quiet).unwrap();
-    let names: Vec<&str> = report.images.iter().map(|i| i.name.as_str()).collect();
+    let names: Vec<&str> = report.images.all().iter().map(|i| i.name.as_str()).collect();
     assert_eq!(names, ["noisy", "rtd denoised", "ETRT (equal time)", "ablation: noisy as guide", "guided filter"]);
-    let etrt = report.image("ETRT (equal time)").unwrap();
+    let etrt = &report.images.etrt;
     assert!(etrt.spp >= options.spp, "ETRT continues the same render");
     assert!(report.pipeline_s() > report.render_s);
     assert!(report.curve.windows(2).all(|w| w[1].0 >= w[0].0 && w[1].1 >= w[0].1), "curve advances in time and spp");
     assert!(report.time_to_quality_s > 0.0 && report.speedup > 0.0);
     assert!((report.pipeline_time_saved_percent - 100.0 * (1.0 - 1.0 / report.speedup)).abs() < 1e-6);
     assert!(report.reference_relmse.unwrap() >= 0.0);
-    for i in &report.images {
+    for i in report.images.all() {
         assert!(i.metrics.psnr.is_finite() && i.metrics.relmse >= 0.0 && i.metrics.ssim <= 1.0);
     }
     let files = write_etrt(&dir.path().join("out"), &report, &images).unwrap();

@@ -153,7 +153,7 @@ fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
         .size(24)
         .reference_spp(16)
         .validation_every(3);
-    let manifest = rtd::train::dataset::generate_dataset(&data, &options, &rtd::train::Quiet).unwrap();
+    let manifest = rtd::train::dataset::generate_dataset(&data, &options, &rtd::image::Quiet).unwrap();
     assert!(manifest.views.iter().any(|v| !v.validation), "the dataset needs a training view");
     let (run, report) = (dir.path().join("run"), dir.path().join("report"));
     let (d, r) = (data.to_str().unwrap(), run.to_str().unwrap());
@@ -307,7 +307,7 @@ fn interrupt_keeps_finished_passes() {
     assert_eq!(r["interrupted"], true);
     let spp = r["spp"].as_u64().unwrap();
     assert!(spp > 0 && spp < 1_000_000, "spp {spp}");
-    assert!(rtd::image::read_exr(&out).unwrap().rgb("").unwrap().is_finite());
+    assert!(rtd::image::read_exr(&out).unwrap().image(rtd::image::Layer::Beauty).unwrap().is_finite());
 }
 
 #[test]
@@ -399,7 +399,7 @@ fn environment_map_from_exr() {
             .collect(),
     );
     let mut layers = rtd::image::Layers::new(w, h);
-    layers.push_rgb("", &sky);
+    layers.put_image(rtd::image::Layer::Beauty, &sky);
     let sky_path = dir.path().join("sky.exr");
     rtd::image::write_exr(&sky_path, &layers).unwrap();
     let obj = dir.path().join("p.obj");
@@ -434,7 +434,7 @@ fn environment_map_from_exr() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // A Lambertian floor of albedo 0.8 under a uniform upper sky of radiance (2, 2, 3) reflects
     // L = 0.8 · (2, 2, 3); the dark lower half cannot reach its upper side.
-    let img = rtd::image::read_exr(&out).unwrap().rgb("").unwrap();
+    let img = rtd::image::read_exr(&out).unwrap().image(rtd::image::Layer::Beauty).unwrap();
     let m = img.mean();
     assert!((m.x - 1.6).abs() < 0.08 && (m.z - 2.4).abs() < 0.12, "floor radiance {m}");
 }

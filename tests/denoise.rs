@@ -25,7 +25,7 @@ fn cornell_inputs(w: u32, h: u32) -> (HdrImage, rtd::guide::GuidePass) {
 }
 
 fn full_input<'a>(color: &'a HdrImage, g: &'a rtd::guide::GuidePass) -> DenoiseInput<'a> {
-    DenoiseInput::with_guide_pass(color, g)
+    rtd::pipeline::denoise_input(color, g)
 }
 
 #[test]

@@ -111,8 +111,8 @@ fn denoise_reads_exr_and_png_inputs() {
     // Colour and guide as sRGB PNGs (another renderer's beauty and material render).
     let (cp, gp) = (dir.path().join("c.png"), dir.path().join("g.png"));
     let img = rtd::image::read_exr(&noisy).unwrap();
-    rtd::image::write_ldr(&cp, &img.rgb("").unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
-    rtd::image::write_ldr(&gp, &img.rgb("guide").unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
+    rtd::image::write_ldr(&cp, &img.image(rtd::image::Layer::Beauty).unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
+    rtd::image::write_ldr(&gp, &img.image(rtd::image::Layer::Guide).unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
     let outp = dir.path().join("o.png");
     let o = rtd(&["denoise", "--color", s(&cp), "--guide", s(&gp), "-o", s(&outp)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -195,12 +195,12 @@ fn denoise_ensemble_is_the_librarys_and_is_reported() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
         assert_eq!(r["denoise_passes"].as_u64(), Some(passes.parse().unwrap()));
-        rtd::image::read_exr(out).unwrap().rgb("").unwrap()
+        rtd::image::read_exr(out).unwrap().image(rtd::image::Layer::Beauty).unwrap()
     };
     let four = run("4", &dir.path().join("o4.exr"), &dir.path().join("r4.json"));
     let one = run("1", &dir.path().join("o1.exr"), &dir.path().join("r1.json"));
     let img = rtd::image::read_exr(&noisy).unwrap();
-    let (color, guide) = (img.rgb("").unwrap(), img.rgb("guide").unwrap());
+    let (color, guide) = (img.image(rtd::image::Layer::Beauty).unwrap(), img.image(rtd::image::Layer::Guide).unwrap());
     let input = rtd::denoise::DenoiseInput::new(&color, &guide);
     let library = rtd::denoise::Denoiser::builtin().unwrap().passes(4).denoise(&input).unwrap();
     assert_eq!(four.pixels, library.pixels);

@@ -5,9 +5,11 @@
 use std::path::Path;
 use std::process::Command;
 
-use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split, ViewRecord, NOISY_SPP};
+use rtd::render::SPP_LADDER;
+use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split, ViewRecord};
 use rtd::train::train::{train, TrainOptions};
-use rtd::train::{Quiet, TrainError};
+use rtd::image::Quiet;
+use rtd::train::TrainError;
 
 fn tiny_dataset(dir: &Path) -> Manifest {
     let options = DatasetOptions::default().scenes(3).views_per_scene(1).size(24).reference_spp(16).validation_every(3);
@@ -45,7 +47,7 @@ fn datagen_resumes_without_redoing_views_and_splits_by_scene() {
         assert!(v.reference_relmse.is_finite() && v.reference_relmse >= 0.0);
         let layers = rtd::image::read_exr(&dir.path().join(&v.file)).unwrap();
         for spp in [1, 2, 4, 8, 16, 32, 64] {
-            assert!(layers.rgb(&format!("noisy{spp}")).is_some());
+            assert!(layers.image(rtd::image::Layer::NoisyAt(spp)).is_some());
         }
         for l in ["reference.R", "guide.R", "albedo.R", "normal.X", "ao.Y", "depth.Z"] {
             assert!(layers.get(l).is_some(), "{l}");
@@ -129,7 +131,7 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     assert_eq!(a.losses, b.losses, "same seed, same losses");
     // Stop after the first epoch (3 steps), then resume.
     struct StopAt(std::sync::atomic::AtomicU64);
-    impl rtd::train::Progress for StopAt {
+    impl rtd::image::Progress for StopAt {
         fn inc(&self, n: u64) {
             self.0.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
         }
@@ -208,7 +210,7 @@ fn manifest_only(dir: &Path, size: u32) {
     };
     let manifest = Manifest {
         options: DatasetOptions::default().size(size),
-        noisy_spp: NOISY_SPP.to_vec(),
+        noisy_spp: SPP_LADDER.to_vec(),
         views: vec![view(0, false), view(5, true)],
         rejected: vec![],
     };
@@ -269,16 +271,18 @@ fn validation_saves_rtd_outputs_that_score_as_reported() {
     let saved = dir.path().join("saved");
     std::fs::create_dir_all(&saved).unwrap();
     let model = rtd::denoise::Denoiser::builtin().unwrap();
-    let report = rtd::train::evaluate::validation_report(&data, &model, 8, &[], Some(saved.as_path()), &Quiet).unwrap();
+    let report = rtd::bench::validation::validation_report(&data, &model, 8, &[], Some(saved.as_path()), &Quiet).unwrap();
     let validation: Vec<_> = manifest.views.iter().filter(|v| v.validation).collect();
     assert_eq!(report.views.len(), validation.len());
     assert_eq!(std::fs::read_dir(&saved).unwrap().count(), validation.len());
     let external = vec![("saved".to_string(), saved.clone())];
-    let again = rtd::train::evaluate::validation_report(&data, &model, 8, &external, None, &Quiet).unwrap();
+    let again = rtd::bench::validation::validation_report(&data, &model, 8, &external, None, &Quiet).unwrap();
     for v in &again.views {
-        let psnr = |name: &str| v.methods.iter().find(|(n, _)| n == name).unwrap().1.psnr;
-        assert!(psnr("rtd (all guides)").is_finite());
-        assert_eq!(psnr("saved"), psnr("rtd (all guides)"), "{}", v.view);
-        assert_ne!(psnr("saved"), psnr("noisy"), "{}", v.view);
+        use rtd::bench::validation::Method;
+        let psnr = |m: Method| v.methods.iter().find(|(n, _)| *n == m).unwrap().1.psnr;
+        let saved = || Method::External("saved".into());
+        assert!(psnr(Method::AllGuides).is_finite());
+        assert_eq!(psnr(saved()), psnr(Method::AllGuides), "{}", v.view);
+        assert_ne!(psnr(saved()), psnr(Method::Noisy), "{}", v.view);
     }
 }

@@ -10,7 +10,6 @@ use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
-use crate::planes::INPUT_CHANNELS;
 
 /// Network hyper-parameters; serialised as JSON beside the weights so a model file is
 /// self-describing.
@@ -296,6 +295,7 @@ impl DenoiserNet {
 
 #[cfg(test)]
 mod tests {
+    use crate::planes::INPUT_CHANNELS;
     use super::*;
     use burn::tensor::TensorData;
 

@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rtd_denoise::encode::{demod_albedo, demod_factor, encode_color_plane, encode_planes, Encoding};
 use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
-use rtd_image::HdrImage;
+use rtd_image::{HdrImage, Layer};
 
 use crate::dataset::{view_path, Manifest, ViewRecord};
 use crate::TrainError;
@@ -59,28 +59,24 @@ pub fn load_views(dir: &Path, validation: bool) -> Result<Vec<View>, TrainError>
     for record in manifest.views.iter().filter(|v| v.validation == validation) {
         let path = view_path(dir, record);
         let layers = rtd_image::read_exr(&path)?;
-        let rgb = |name: &str| layers.rgb(name).ok_or_else(|| TrainError::msg(&path, format!("missing layer {name}")));
-        let plane = |name: &str| {
-            layers
-                .get(name)
-                .map(|v| v.to_vec())
-                .ok_or_else(|| TrainError::msg(&path, format!("missing channel {name}")))
-        };
+        let missing = |layer: Layer| TrainError::msg(&path, format!("missing layer {}", layer.prefix()));
+        let image = |layer: Layer| layers.image(layer).ok_or_else(|| missing(layer));
+        let plane = |layer: Layer| layers.plane(layer).map(<[f32]>::to_vec).ok_or_else(|| missing(layer));
         let mut noisy = vec![];
         for spp in &manifest.noisy_spp {
-            noisy.push((*spp, rgb(&format!("noisy{spp}"))?));
+            noisy.push((*spp, image(Layer::NoisyAt(*spp))?));
         }
-        let reference = rgb("reference")?;
+        let reference = image(Layer::Reference)?;
         views.push(View {
             record: record.clone(),
             path: path.clone(),
             size: (reference.width as usize, reference.height as usize),
             noisy,
-            guide: rgb("guide")?,
-            albedo: rgb("albedo")?,
-            normal: layers.xyz("normal").ok_or_else(|| TrainError::msg(&path, "missing layer normal"))?,
-            ao: plane("ao.Y")?,
-            depth: plane("depth.Z")?,
+            guide: image(Layer::Guide)?,
+            albedo: image(Layer::Albedo)?,
+            normal: image(Layer::Normal)?,
+            ao: plane(Layer::Ao)?,
+            depth: plane(Layer::Depth)?,
             reference,
         });
     }

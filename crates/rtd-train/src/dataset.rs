@@ -7,15 +7,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use rtd_guide::{GuidePass, GuideSettings};
-use rtd_image::{HdrImage, Layers};
-use rtd_render::{PathTracer, RenderScene, RenderSettings};
+use rtd_image::{luminance, HdrImage, Layer, Layers};
+use rtd_render::{PathTracer, RenderScene, RenderSettings, SPP_LADDER};
 use serde::{Deserialize, Serialize};
 
 use crate::scenegen::{generate_scene, Layout, SceneGenOptions};
 use crate::{Progress, TrainError};
-
-/// The noisy sample counts every view is rendered at.
-pub const NOISY_SPP: [u32; 7] = [1, 2, 4, 8, 16, 32, 64];
 
 /// Options for [`generate_dataset`]: start from [`DatasetOptions::default`] and change fields
 /// with the chained setters below.
@@ -183,9 +180,6 @@ fn render_seed(master: u64, scene: u64, view: usize, purpose: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-fn luminance(v: glam::Vec3) -> f32 {
-    0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z
-}
 
 /// Renders `spp` samples with `seed` and returns the beauty.
 fn beauty(rs: &RenderScene, cam: &rtd_scene::Camera, size: u32, seed: u64, spp: u32) -> Result<HdrImage, TrainError> {
@@ -241,7 +235,7 @@ fn open_manifest(dir: &Path, options: &DatasetOptions) -> Result<Manifest, Train
             "was made with other options (only --scenes may grow); use a new directory",
         )),
         Err(_) => {
-            Ok(Manifest { options: options.clone(), noisy_spp: NOISY_SPP.to_vec(), views: vec![], rejected: vec![] })
+            Ok(Manifest { options: options.clone(), noisy_spp: SPP_LADDER.to_vec(), views: vec![], rejected: vec![] })
         }
     }
 }
@@ -316,7 +310,7 @@ enum ViewRender {
 }
 
 /// Renders camera `view` of scene `scene_index` (loaded as `rs`): the guide pass and a 4-spp
-/// preview that may reject the view, then the noisy renders at every [`NOISY_SPP`] and the
+/// preview that may reject the view, then the noisy renders at every [`SPP_LADDER`] and the
 /// reference.
 fn render_view(
     rs: &RenderScene,
@@ -332,13 +326,13 @@ fn render_view(
         return Ok(ViewRender::Rejected(why));
     }
     let mut layers = Layers::new(size, size);
-    for (k, spp) in NOISY_SPP.iter().enumerate() {
+    for (k, spp) in SPP_LADDER.iter().enumerate() {
         let img = beauty(rs, &cam, size, render_seed(options.seed, scene_index, view, k as u64), *spp)?;
-        layers.push_rgb(&format!("noisy{spp}"), &img);
+        layers.put_image(Layer::NoisyAt(*spp), &img);
     }
     guide.add_to(&mut layers);
     let (reference, rounds, reference_relmse) = render_reference(rs, &cam, options, scene_index, view)?;
-    layers.push_rgb("reference", &reference);
+    layers.put_image(Layer::Reference, &reference);
     Ok(ViewRender::Kept { layers, reference_spp: options.reference_spp * rounds, reference_relmse })
 }
 

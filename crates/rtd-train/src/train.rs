@@ -688,7 +688,7 @@ mod tests {
         };
         Manifest {
             options: crate::dataset::DatasetOptions::default().size(size),
-            noisy_spp: crate::dataset::NOISY_SPP.to_vec(),
+            noisy_spp: rtd_render::SPP_LADDER.to_vec(),
             views: vec![view(false), view(true)],
             rejected: vec![],
         }

@@ -191,10 +191,10 @@ pub struct SpeedArgs {
     #[arg(default_value = "scenes/cornell-box.gltf")]
     pub scene: PathBuf,
     /// Image width.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
     pub width: u32,
     /// Image height.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
     pub height: u32,
     /// Samples per pixel of each timed render.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
@@ -240,10 +240,10 @@ pub struct PipelineArgs {
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
     pub reference_spp: u32,
     /// Image width.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
     pub width: u32,
     /// Image height.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=16384))]
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
     pub height: u32,
     /// The denoiser: model and self-ensemble passes.
     #[command(flatten)]
@@ -366,10 +366,10 @@ pub struct ViewArgs {
     /// Scene file (.gltf, .glb or .obj).
     pub scene: PathBuf,
     /// Image width in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_render::MAX_RESOLUTION as i64))]
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
     pub width: u32,
     /// Image height in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_render::MAX_RESOLUTION as i64))]
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
     pub height: u32,
     /// Camera by name or index (default: the first perspective camera in the file).
     #[arg(long)]
