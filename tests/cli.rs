@@ -126,7 +126,8 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["render", "-o", o]), "<SCENE>");
     assert_fails(&rtd(&["train", "-o", o]), "--data <DATA>");
     // The experiment harnesses removed in the architecture clean-up are unknown flags now.
-    for removed in [vec!["--grow", "64"], vec!["--gradient-loss", "0.5"], vec!["--no-depth"], vec!["--variant", "unet"]] {
+    for removed in [vec!["--grow", "64"], vec!["--gradient-loss", "0.5"], vec!["--no-depth"], vec!["--variant", "unet"]]
+    {
         let mut args = vec!["train", "--data", o, "-o", o];
         args.extend_from_slice(&removed);
         assert_fails(&rtd(&args), &format!("unexpected argument '{}'", removed[0]));

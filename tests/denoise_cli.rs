@@ -111,7 +111,8 @@ fn denoise_reads_exr_and_png_inputs() {
     // Colour and guide as sRGB PNGs (another renderer's beauty and material render).
     let (cp, gp) = (dir.path().join("c.png"), dir.path().join("g.png"));
     let img = rtd::image::read_exr(&noisy).unwrap();
-    rtd::image::write_ldr(&cp, &img.image(rtd::image::Layer::Beauty).unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
+    rtd::image::write_ldr(&cp, &img.image(rtd::image::Layer::Beauty).unwrap(), 0.0, rtd::image::Tonemap::Clamp)
+        .unwrap();
     rtd::image::write_ldr(&gp, &img.image(rtd::image::Layer::Guide).unwrap(), 0.0, rtd::image::Tonemap::Clamp).unwrap();
     let outp = dir.path().join("o.png");
     let o = rtd(&["denoise", "--color", s(&cp), "--guide", s(&gp), "-o", s(&outp)]);

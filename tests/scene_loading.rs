@@ -406,7 +406,7 @@ fn an_accessor_running_past_its_buffer_view_is_an_error_naming_file_mesh_and_acc
     match e {
         SceneError::Accessor { mesh, mesh_name, accessor, problem, .. } => {
             assert_eq!((mesh, mesh_name.as_deref(), accessor), (0, Some("Cube"), 0));
-            assert!(matches!(problem, AccessorProblem::PastViewEnd { count: 1_000_000_000, view: 0, .. }));
+            assert!(matches!(*problem, AccessorProblem::PastViewEnd { count: 1_000_000_000, view: 0, .. }));
         }
         other => panic!("expected an accessor error, got {other:?}"),
     }
@@ -432,7 +432,7 @@ fn other_structural_corruption_is_an_error_too() {
     let (p, e) = corrupt_quad(dir.path(), "index.gltf", |_, buf| buf[90..92].copy_from_slice(&7u16.to_le_bytes()));
     assert_eq!(e.to_string(), format!("{}: mesh 0, accessor 2: index 7 is out of range (4 vertices)", p.display()));
     let problem = AccessorProblem::IndexOutOfRange { index: 7, vertex_count: 4 };
-    assert!(matches!(e, SceneError::Accessor { accessor: 2, problem: ref found, .. } if *found == problem), "{e:?}");
+    assert!(matches!(e, SceneError::Accessor { accessor: 2, problem: ref found, .. } if **found == problem), "{e:?}");
     // A buffer view past the end of its buffer.
     let (p, e) = corrupt_quad(dir.path(), "view.gltf", |doc, _| doc["bufferViews"][2]["byteLength"] = json!(100));
     assert_eq!(

@@ -5,10 +5,10 @@
 use std::path::Path;
 use std::process::Command;
 
+use rtd::image::Quiet;
 use rtd::render::SPP_LADDER;
 use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split, ViewRecord};
 use rtd::train::train::{train, TrainOptions};
-use rtd::image::Quiet;
 use rtd::train::TrainError;
 
 fn tiny_dataset(dir: &Path) -> Manifest {
@@ -271,7 +271,8 @@ fn validation_saves_rtd_outputs_that_score_as_reported() {
     let saved = dir.path().join("saved");
     std::fs::create_dir_all(&saved).unwrap();
     let model = rtd::denoise::Denoiser::builtin().unwrap();
-    let report = rtd::bench::validation::validation_report(&data, &model, 8, &[], Some(saved.as_path()), &Quiet).unwrap();
+    let report =
+        rtd::bench::validation::validation_report(&data, &model, 8, &[], Some(saved.as_path()), &Quiet).unwrap();
     let validation: Vec<_> = manifest.views.iter().filter(|v| v.validation).collect();
     assert_eq!(report.views.len(), validation.len());
     assert_eq!(std::fs::read_dir(&saved).unwrap().count(), validation.len());

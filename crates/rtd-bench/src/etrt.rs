@@ -61,7 +61,7 @@ pub struct Scored {
 pub struct EtrtReport {
     /// Scene file.
     pub scene: String,
-    /// Options.
+    /// What was measured: sample counts, size, seeds, reference.
     pub options: EtrtOptions,
     /// Reference spp and where it came from.
     pub reference: String,
@@ -96,7 +96,6 @@ impl EtrtReport {
     pub fn pipeline_s(&self) -> f64 {
         self.render_s + self.guide_s + self.denoise_s
     }
-
 }
 
 /// The images an equal-time comparison scores.
@@ -161,11 +160,15 @@ pub fn reference(
     progress: &dyn Progress,
 ) -> Result<Reference, BenchError> {
     if let Some(p) = given {
-        let image = rtd_image::read_exr(p)?.image(Layer::Beauty).ok_or_else(|| BenchError::msg(p, "no R,G,B channels"))?;
+        let image =
+            rtd_image::read_exr(p)?.image(Layer::Beauty).ok_or_else(|| BenchError::msg(p, "no R,G,B channels"))?;
         if (image.width, image.height) != (o.width, o.height) {
             return Err(BenchError::msg(
                 p,
-                format!("reference is {}x{}, the benchmark renders {}x{}", image.width, image.height, o.width, o.height),
+                format!(
+                    "reference is {}x{}, the benchmark renders {}x{}",
+                    image.width, image.height, o.width, o.height
+                ),
             ));
         }
         return Ok(Reference { image, description: format!("loaded from {}", p.display()), relmse: None });
@@ -251,7 +254,13 @@ pub fn run_etrt(
         (render_s + extra.seconds, film.spp, images.etrt.metrics.relmse, images.etrt.metrics.psnr),
     ];
     let plain = PlainRender { tracer: &tracer, reference: &reference.image, start_s: render_s + extra.seconds };
-    let reached = plain.time_to_quality(&mut film, &mut curve, images.denoised.metrics.relmse, pipeline_s * o.max_plain_factor, progress)?;
+    let reached = plain.time_to_quality(
+        &mut film,
+        &mut curve,
+        images.denoised.metrics.relmse,
+        pipeline_s * o.max_plain_factor,
+        progress,
+    )?;
     progress.inc(1);
     let (time_to_quality_s, extrapolated) = reached;
     let report = EtrtReport {

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use glam::Vec3;
-use rtd_plot::{write_charts, Chart, Series};
 use rtd_image::{tonemap_to_srgb8, HdrImage, Tonemap};
+use rtd_plot::{write_charts, Chart, Series};
 
 use crate::etrt::{EtrtImages, EtrtReport};
 use crate::BenchError;

@@ -125,7 +125,11 @@ pub fn auto_exposure(color: &HdrImage) -> f32 {
         .map(|chunk| {
             let (mut sum, mut n) = (0.0f64, 0usize);
             for p in chunk {
-                let l = luminance(Vec3::new(clean(p.x, 0.0, MAX_INPUT), clean(p.y, 0.0, MAX_INPUT), clean(p.z, 0.0, MAX_INPUT)));
+                let l = luminance(Vec3::new(
+                    clean(p.x, 0.0, MAX_INPUT),
+                    clean(p.y, 0.0, MAX_INPUT),
+                    clean(p.z, 0.0, MAX_INPUT),
+                ));
                 if l > 1e-8 {
                     sum += (l as f64).ln();
                     n += 1;

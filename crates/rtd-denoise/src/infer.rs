@@ -20,7 +20,6 @@ use rtd_image::MAX_DIMENSION;
 const BUILTIN_CONFIG: &str = include_str!("../../../models/rtd-denoiser.json");
 const BUILTIN_WEIGHTS: &[u8] = include_bytes!("../../../models/rtd-denoiser.bpk");
 
-
 /// How far past the image edges the edge pixels are repeated (rounded up to the network's
 /// alignment, and at most the tile margin); the network's own zero padding lies beyond that.
 /// Smaller than the receptive radius, which saves about a fifth of the work at 512².

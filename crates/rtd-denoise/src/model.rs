@@ -106,14 +106,7 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
-        DenoiserNet {
-            stem,
-            encoders,
-            bottleneck,
-            decoders,
-            output,
-            downsample: MaxPool2dConfig::new([2, 2]).init(),
-        }
+        DenoiserNet { stem, encoders, bottleneck, decoders, output, downsample: MaxPool2dConfig::new([2, 2]).init() }
     }
 
     /// An upper bound on how far (in full-resolution pixels) an input pixel can influence an
@@ -295,8 +288,8 @@ impl DenoiserNet {
 
 #[cfg(test)]
 mod tests {
-    use crate::planes::INPUT_CHANNELS;
     use super::*;
+    use crate::planes::INPUT_CHANNELS;
     use burn::tensor::TensorData;
 
     #[test]

@@ -84,7 +84,8 @@ mod tests {
         for i in 0..INPUT_CHANNELS {
             assert_eq!(Plane::of(i).index(), i);
         }
-        let members = |p: OptionalPair| (0..INPUT_CHANNELS).filter(|&i| Plane::of(i).pair() == Some(p)).collect::<Vec<_>>();
+        let members =
+            |p: OptionalPair| (0..INPUT_CHANNELS).filter(|&i| Plane::of(i).pair() == Some(p)).collect::<Vec<_>>();
         assert_eq!(members(OptionalPair::AlbedoNormal), [6, 7, 8, 9, 10, 11, 14]);
         assert_eq!(members(OptionalPair::AoDepth), [12, 13, 15]);
     }

@@ -7,6 +7,8 @@
 //! the BVH. Its layers are `albedo`, `normal` (world, after normal maps), `depth` (camera-space
 //! distance), `ao`, and `guide` = albedo × AO, the "material render with AO" of the seed thesis.
 
+#![warn(missing_docs)]
+
 mod ao;
 pub mod raster;
 

@@ -40,6 +40,10 @@ impl ImageError {
     pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         ImageError::Io { path: path.to_path_buf(), source }
     }
+    /// `path` does not exist.
+    pub fn missing(path: &std::path::Path) -> Self {
+        ImageError::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"))
+    }
     /// `path` could not be decoded.
     pub fn decode(path: &std::path::Path, message: impl ToString) -> Self {
         ImageError::Decode { path: path.to_path_buf(), message: message.to_string() }

@@ -2,8 +2,8 @@ use std::io::Write;
 use std::path::Path;
 
 use exr::prelude::{
-    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer, LayerAttributes,
-    LineOrder, SmallVec, WritableImage,
+    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer,
+    LayerAttributes, LineOrder, SmallVec, WritableImage,
 };
 
 use crate::layer::{Channels, Layer};
@@ -116,7 +116,7 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
 /// Channels of other layers in the same part keep their full `layer.channel` names.
 pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
     if !path.exists() {
-        return Err(ImageError::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "no such file")));
+        return Err(ImageError::missing(path));
     }
     let image = read_all_flat_layers_from_file(path).map_err(|e| ImageError::decode(path, e))?;
     let layer = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;

@@ -76,6 +76,9 @@ pub fn write_ldr(path: &Path, image: &HdrImage, exposure: f32, tonemap: Tonemap)
 
 /// Reads a PNG or JPEG as sRGB-encoded LDR and returns it as linear RGB in [0,1].
 pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
+    if !path.exists() {
+        return Err(ImageError::missing(path));
+    }
     let reader = image::ImageReader::open(path).map_err(|e| ImageError::io(path, e))?;
     let reader = reader.with_guessed_format().map_err(|e| ImageError::io(path, e))?;
     let (w, h) = reader.into_dimensions().map_err(|e| ImageError::decode(path, e))?;

@@ -11,8 +11,8 @@ use serde::Serialize;
 
 use crate::PipelineError;
 
-/// The files a denoise reads: the noisy colour, and a guide (material colour × AO) or albedo
-/// + normal, or all three. EXR inputs are read from their named layer (`guide.*`,
+/// The files a denoise reads: the noisy colour, and a guide (material colour × AO) or an albedo
+/// with a normal, or all three. EXR inputs are read from their named layer (`guide.*`,
 /// `albedo.*`, `normal.*`) if present, else from `R,G,B`; PNG and JPEG as sRGB (normals as
 /// n·0.5 + 0.5).
 #[derive(Clone, Debug, Default)]
@@ -119,7 +119,10 @@ impl DenoiseOutcome {
             0 => String::new(),
             n => format!(" ({n} NaN/Inf input values zeroed or clamped)"),
         };
-        format!("denoised {}x{} in {:.3} s with {}{nonfinite}", self.width, self.height, self.denoise_s, self.denoise_model)
+        format!(
+            "denoised {}x{} in {:.3} s with {}{nonfinite}",
+            self.width, self.height, self.denoise_s, self.denoise_model
+        )
     }
 }
 

@@ -5,6 +5,8 @@
 //! only on (seed, p, i, dimension), so 8 spp continued by 8 more equals 16 spp, byte for byte,
 //! whatever the thread count.
 
+#![warn(missing_docs)]
+
 pub mod bsdf;
 pub mod bvh;
 mod film;
@@ -39,7 +41,9 @@ pub enum RenderError {
         height: u32,
     },
     /// The image has more than [`MAX_PIXELS`] pixels.
-    #[error("resolution {width}x{height} exceeds {MAX_PIXELS} pixels (8192x8192); render tiles or lower the resolution")]
+    #[error(
+        "resolution {width}x{height} exceeds {MAX_PIXELS} pixels (8192x8192); render tiles or lower the resolution"
+    )]
     TooManyPixels {
         /// Requested width.
         width: u32,

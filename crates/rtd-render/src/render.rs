@@ -249,7 +249,10 @@ impl<'a> PathTracer<'a> {
 
     fn check_film(&self, film: &Film, samples: u32) -> Result<(), RenderError> {
         if (film.width, film.height) != (self.settings.width, self.settings.height) {
-            return Err(RenderError::FilmSize { film: (film.width, film.height), settings: (self.settings.width, self.settings.height) });
+            return Err(RenderError::FilmSize {
+                film: (film.width, film.height),
+                settings: (self.settings.width, self.settings.height),
+            });
         }
         if samples == 0 || samples > MAX_SPP || film.spp as u64 + samples as u64 > MAX_SPP as u64 {
             return Err(RenderError::Samples { have: film.spp, asked: samples });

@@ -40,7 +40,8 @@ impl Environment {
         let path = Path::new(arg);
         let image_error = |source| SceneError::Image { path: path.to_path_buf(), source };
         let layers = rtd_image::read_exr(path).map_err(image_error)?;
-        let mut img = layers.image(rtd_image::Layer::Beauty).ok_or_else(|| SceneError::new(path, "EXR has no R,G,B channels"))?;
+        let mut img =
+            layers.image(rtd_image::Layer::Beauty).ok_or_else(|| SceneError::new(path, "EXR has no R,G,B channels"))?;
         for p in &mut img.pixels {
             *p = if p.is_finite() { p.max(Vec3::ZERO) } else { Vec3::ZERO };
         }

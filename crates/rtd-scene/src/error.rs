@@ -72,7 +72,7 @@ pub enum SceneError {
         /// Index of the accessor in the file.
         accessor: usize,
         /// What is wrong with the accessor.
-        problem: AccessorProblem,
+        problem: Box<AccessorProblem>,
     },
     /// The OBJ file could not be parsed.
     #[error("{path}: cannot load OBJ: {source}")]
@@ -252,7 +252,7 @@ mod tests {
             mesh: 0,
             mesh_name: Some("Cube".into()),
             accessor: 2,
-            problem: AccessorProblem::PastViewEnd {
+            problem: Box::new(AccessorProblem::PastViewEnd {
                 what: "elements",
                 count: 1_000_000_000,
                 element_size: 12,
@@ -260,7 +260,7 @@ mod tests {
                 stride: 12,
                 view: 0,
                 view_length: 48,
-            },
+            }),
         };
         assert_eq!(
             e.to_string(),

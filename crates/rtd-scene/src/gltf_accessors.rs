@@ -39,7 +39,7 @@ impl MeshSite<'_> {
             mesh: self.index,
             mesh_name: self.name.map(str::to_string),
             accessor,
-            problem,
+            problem: Box::new(problem),
         }
     }
 }

@@ -224,10 +224,10 @@ impl CropSampler {
                 Some((_, target)) if drop_an => target,
                 _ => &e.target,
             };
-            for c in 0..3 {
+            for &channel in &perm {
                 for y in 0..s {
                     for x in 0..s {
-                        let i = perm[c] * n_px + src(x, y);
+                        let i = channel * n_px + src(x, y);
                         ys.push(if black { 0.0 } else { target[i] });
                         // A crop without albedo is not demodulated, so it decodes by exposure alone.
                         scales.push(if e.plain.is_some() && drop_an { 1.0 / e.exposure } else { e.scale[i] });

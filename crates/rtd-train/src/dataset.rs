@@ -180,7 +180,6 @@ fn render_seed(master: u64, scene: u64, view: usize, purpose: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-
 /// Renders `spp` samples with `seed` and returns the beauty.
 fn beauty(rs: &RenderScene, cam: &rtd_scene::Camera, size: u32, seed: u64, spp: u32) -> Result<HdrImage, TrainError> {
     let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(size, size).seed(seed))?;

@@ -3,6 +3,8 @@
 //! Everything a command does is a library call ([`render_command::render`] and friends), so
 //! tests and benchmarks reach the same code paths as users.
 
+#![warn(missing_docs)]
+
 mod arg_values;
 pub mod args;
 pub mod bench_command;
@@ -63,12 +65,16 @@ pub fn print_line(text: &str) -> anyhow::Result<()> {
     print_text(&format!("{text}\n"))
 }
 
-/// An error and its causes on one line.
+/// An error and its causes on one line, each cause once.
 pub fn one_line(e: &anyhow::Error) -> String {
     let mut parts: Vec<String> = Vec::new();
     for cause in e.chain() {
         let s = cause.to_string().replace('\n', " ");
-        if !parts.iter().any(|p| p.contains(&s)) {
+        // A cause already said in other words ("x.gltf: no such file" over the I/O error's "No
+        // such file or directory (os error 2)") is left out: compare its opening words.
+        let said = parts.join(": ").to_lowercase();
+        let opening: String = s.to_lowercase().chars().take(12).collect();
+        if !parts.iter().any(|p| p.contains(&s)) && !said.contains(&opening) {
             parts.push(s);
         }
     }
@@ -87,6 +93,14 @@ fn first_paragraph(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cause_already_said_is_not_repeated() {
+        let e = anyhow::Error::from(rtd_scene::load_scene(std::path::Path::new("/nonexistent/x.gltf")).unwrap_err());
+        assert_eq!(one_line(&e), "/nonexistent/x.gltf: no such file");
+        let e = anyhow::Error::from(rtd_image::read_ldr(std::path::Path::new("/nonexistent/x.png")).unwrap_err());
+        assert_eq!(one_line(&e), "/nonexistent/x.png: no such file");
+    }
 
     #[test]
     fn clap_errors_keep_the_arguments_they_list() {
