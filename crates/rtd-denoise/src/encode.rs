@@ -22,18 +22,15 @@ pub const DEMOD_EPS: f32 = 0.01;
 pub struct Encoding {
     /// Colour is divided by albedo + [`DEMOD_EPS`] where an albedo layer is given.
     pub demodulate: bool,
-    /// The depth plane is filled (otherwise it stays 0, and only AO is read of the AO + depth
-    /// pair).
-    pub depth: bool,
     /// The value auto-exposure maps the log-average luminance to before the log transfer
     /// ([`DEFAULT_KEY`] unless the model says otherwise).
     pub key: f32,
 }
 
 impl Default for Encoding {
-    /// No demodulation; depth read; the default key.
+    /// No demodulation; the default key.
     fn default() -> Self {
-        Encoding { demodulate: false, depth: true, key: DEFAULT_KEY }
+        Encoding { demodulate: false, key: DEFAULT_KEY }
     }
 }
 
@@ -85,18 +82,12 @@ impl<'a> DenoiseInput<'a> {
         }
         for (name, iw, ih) in sizes {
             if (iw, ih) != (w, h) {
-                return Err(DenoiseError::Input(format!(
-                    "the {name} image is {iw}x{ih} but the colour image is {w}x{h}"
-                )));
+                return Err(DenoiseError::SizeMismatch { layer: name, size: (iw, ih), color: (w, h) });
             }
         }
         if let Some((ao, d)) = self.ao_depth {
             if ao.len() != n || d.len() != n {
-                return Err(DenoiseError::Input(format!(
-                    "AO/depth have {} and {} values, expected {n}",
-                    ao.len(),
-                    d.len()
-                )));
+                return Err(DenoiseError::PlaneLength { ao: ao.len(), depth: d.len(), expected: n });
             }
         }
         Ok((w, h))
@@ -193,7 +184,7 @@ pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&H
 
 /// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order. With
 /// `encoding.demodulate` and an albedo layer, the colour planes hold colour ÷ (albedo +
-/// [`DEMOD_EPS`]); without `encoding.depth` the depth plane stays 0.
+/// [`DEMOD_EPS`]).
 pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) -> Result<Vec<f32>, DenoiseError> {
     let (w, h) = input.size()?;
     let n = (w * h) as usize;
@@ -221,7 +212,7 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) ->
             }
             (Plane::Ao, _, Some(((ao, _), _))) => plane.iter_mut().zip(ao).for_each(|(v, a)| *v = clean(*a, 0.0, 1.0)),
             // Depth relative to the mean hit distance, so the scene's scale does not matter.
-            (Plane::Depth, _, Some(((_, d), s))) if encoding.depth => {
+            (Plane::Depth, _, Some(((_, d), s))) => {
                 plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0))
             }
             (Plane::HasAlbedoNormal, Some(_), _) | (Plane::HasAoDepth, _, Some(_)) => plane.fill(1.0),
@@ -284,21 +275,23 @@ mod tests {
     }
 
     #[test]
-    fn without_depth_the_depth_plane_is_zero_and_ao_is_still_read() {
+    fn ao_and_depth_fill_their_planes_and_flag_only_when_given() {
         let color = HdrImage::from_pixels(2, 1, vec![Vec3::splat(0.5), Vec3::splat(3.0)]);
         let (ao, depth) = ([0.25, 1.0], [2.0, 6.0]);
-        let input = DenoiseInput::new(&color, &color).ao_depth(&ao, &depth);
         let plane = |planes: &[f32], c: usize| planes[2 * c..2 * c + 2].to_vec();
-        let with = encode_planes(&input, 1.0, Encoding::default()).unwrap();
-        let without = encode_planes(&input, 1.0, Encoding { depth: false, ..Encoding::default() }).unwrap();
-        // Depth relative to the mean hit distance (4).
+        let with = encode_planes(&DenoiseInput::new(&color, &color).ao_depth(&ao, &depth), 1.0, Encoding::default());
+        let without = encode_planes(&DenoiseInput::new(&color, &color), 1.0, Encoding::default());
+        let (with, without) = (with.unwrap(), without.unwrap());
         let (ao, depth, flag) = (Plane::Ao.index(), Plane::Depth.index(), Plane::HasAoDepth.index());
+        // Depth relative to the mean hit distance (4).
         assert_eq!(plane(&with, depth), [0.5, 1.5]);
-        assert_eq!(plane(&without, depth), [0.0, 0.0]);
-        for c in (0..INPUT_CHANNELS).filter(|c| *c != depth) {
+        assert_eq!((plane(&with, ao), plane(&with, flag)), (vec![0.25, 1.0], vec![1.0, 1.0]));
+        for c in [ao, depth, flag] {
+            assert_eq!(plane(&without, c), [0.0, 0.0], "plane {c}");
+        }
+        for c in (0..INPUT_CHANNELS).filter(|c| ![ao, depth, flag].contains(c)) {
             assert_eq!(plane(&with, c), plane(&without, c), "plane {c}");
         }
-        assert_eq!((plane(&without, ao), plane(&without, flag)), (vec![0.25, 1.0], vec![1.0, 1.0]));
     }
 
     #[test]

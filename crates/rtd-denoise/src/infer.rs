@@ -98,40 +98,35 @@ impl Denoiser {
     /// Builds a denoiser from a config (JSON) and burnpack weights; `name` is shown in reports.
     pub fn from_bytes(config_json: &str, weights: Vec<u8>, name: &str) -> Result<Self, DenoiseError> {
         let config = DenoiserConfig::from_json(config_json)
-            .map_err(|e| DenoiseError::Model(format!("{name}: bad model config: {e}")))?;
+            .map_err(|e| DenoiseError::model(name, format!("bad model config: {e}")))?;
         if config.input_channels != INPUT_CHANNELS {
-            return Err(DenoiseError::Model(format!(
-                "{name}: model expects {} input channels, this rtd provides {INPUT_CHANNELS}",
-                config.input_channels
-            )));
+            return Err(DenoiseError::model(
+                name,
+                format!("model expects {} input channels, this rtd provides {INPUT_CHANNELS}", config.input_channels),
+            ));
         }
         if config.channels.is_empty()
             || config.channels.len() > 5
             || config.channels.iter().any(|c| *c == 0 || *c > 512)
         {
-            return Err(DenoiseError::Model(format!("{name}: implausible channel list {:?}", config.channels)));
+            return Err(DenoiseError::model(name, format!("implausible channel list {:?}", config.channels)));
         }
         let device = Device::flex();
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights))
-            .map_err(|e| DenoiseError::Model(format!("{name}: corrupt weights: {e}")))?;
+            .map_err(|e| DenoiseError::model(name, format!("corrupt weights: {e}")))?;
         let net = config
             .init(&device)
             .try_load_record(record)
-            .map_err(|e| DenoiseError::Model(format!("{name}: weights do not match the config: {e}")))?;
+            .map_err(|e| DenoiseError::model(name, format!("weights do not match the config: {e}")))?;
         Ok(Self::from_net(net, config, device, name))
     }
 
     /// Loads `path` (burnpack weights) and its config `path` with extension `.json`.
     pub fn load(path: &Path) -> Result<Self, DenoiseError> {
-        let weights = std::fs::read(path).map_err(|e| DenoiseError::Model(format!("{}: {e}", path.display())))?;
+        let weights = std::fs::read(path).map_err(|source| DenoiseError::Io { path: path.into(), source })?;
         let cfg_path = path.with_extension("json");
-        let config = std::fs::read_to_string(&cfg_path).map_err(|e| {
-            DenoiseError::Model(format!(
-                "{}: cannot read the model's config {}: {e}",
-                path.display(),
-                cfg_path.display()
-            ))
-        })?;
+        let config =
+            std::fs::read_to_string(&cfg_path).map_err(|source| DenoiseError::Io { path: cfg_path.clone(), source })?;
         Self::from_bytes(&config, weights, &path.display().to_string())
     }
 
@@ -204,7 +199,7 @@ impl Denoiser {
     pub fn denoise(&self, input: &DenoiseInput) -> Result<HdrImage, DenoiseError> {
         let (w, h) = input.size()?;
         if w == 0 || h == 0 || w > MAX_DIMENSION || h > MAX_DIMENSION {
-            return Err(DenoiseError::Input(format!("image size {w}x{h} is outside 1..={MAX_DIMENSION} per side")));
+            return Err(DenoiseError::Size { width: w, height: h });
         }
         let encoding = self.config.encoding();
         let exposure = encoding.exposure(input.color);

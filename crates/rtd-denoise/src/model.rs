@@ -59,7 +59,7 @@ impl DenoiserConfig {
 
     /// How inputs are encoded for this network (every network reads the depth layer).
     pub fn encoding(&self) -> Encoding {
-        Encoding { demodulate: self.demodulates(), depth: true, key: self.exposure_key() }
+        Encoding { demodulate: self.demodulates(), key: self.exposure_key() }
     }
 
     /// Parses a model config, the `.json` saved beside the weights. Unknown fields are ignored.
@@ -320,7 +320,7 @@ mod tests {
         let shipped = DenoiserConfig::from_json(include_str!("../../../models/rtd-denoiser.json")).unwrap();
         assert_eq!((&shipped.channels, shipped.bottleneck_blocks, shipped.prong), (&vec![24, 48, 64], 2, 5));
         assert!(shipped.demodulates() && (shipped.exposure_key() - 2.88).abs() < 1e-6);
-        assert_eq!(shipped.encoding(), Encoding { demodulate: true, depth: true, key: shipped.exposure_key() });
+        assert_eq!(shipped.encoding(), Encoding { demodulate: true, key: shipped.exposure_key() });
         // A small config's JSON with one field set as older rtd versions wrote it.
         let with = |field: &str, v: serde_json::Value| {
             let mut json = serde_json::to_value(DenoiserConfig::new(vec![8, 8])).unwrap();

@@ -139,7 +139,11 @@ impl<'a> Pipeline<'a> {
         if film.spp == 0 {
             return Err(PipelineError::NothingRendered);
         }
-        let interrupted = progress.cancelled();
+        // Stopped early: fewer passes than asked for, or a time budget the observer cut short.
+        let interrupted = match budget {
+            Budget::Samples(spp) => stats.spp < spp,
+            Budget::Time(_) => progress.cancelled(),
+        };
         let mut timings = StageTimings {
             load_s: self.view.load_s,
             bvh_s: self.view.scene.bvh_seconds,

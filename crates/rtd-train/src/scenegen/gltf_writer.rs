@@ -30,6 +30,15 @@ pub struct GenMaterial {
     pub emissive_strength: f32,
 }
 
+/// A scene's meshes in glTF form: the binary buffer and the JSON arrays that index it.
+struct Geometry {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+    meshes: Vec<Value>,
+    nodes: Vec<Value>,
+}
+
 impl GenMaterial {
     /// A plain diffuse material.
     pub fn diffuse(c: Vec3) -> Self {
@@ -86,6 +95,30 @@ impl GenScene {
     /// Writes `dir/name.gltf`, `dir/name.bin` and `dir/name_texN.png`.
     pub fn write(&self, dir: &Path, name: &str) -> Result<(), TrainError> {
         std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
+        let Geometry { bin, views, accessors, meshes, mut nodes } = self.geometry();
+        let cameras = self.cameras_json(&mut nodes);
+        let materials = self.materials_json();
+        let images = self.write_textures(dir, name)?;
+        let textures: Vec<Value> = (0..images.len()).map(|i| json!({"source": i, "sampler": 0})).collect();
+        let bin_name = format!("{name}.bin");
+        let doc = json!({
+            "asset": {"version": "2.0", "generator": "rtd datagen"},
+            "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior"],
+            "scene": 0,
+            "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
+            "nodes": nodes, "meshes": meshes, "cameras": cameras, "materials": materials,
+            "textures": textures, "images": images,
+            "samplers": [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}],
+            "accessors": accessors, "bufferViews": views,
+            "buffers": [{"uri": bin_name, "byteLength": bin.len()}],
+        });
+        rtd_image::write_bytes_atomic(&dir.join(&bin_name), &bin)?;
+        let text = serde_json::to_vec_pretty(&doc).map_err(|e| TrainError::msg(dir, e.to_string()))?;
+        Ok(rtd_image::write_bytes_atomic(&dir.join(format!("{name}.gltf")), &text)?)
+    }
+
+    /// The meshes as one binary buffer with its views and accessors, one node per mesh.
+    fn geometry(&self) -> Geometry {
         let mut bin = Vec::new();
         let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
         for (mesh, material) in &self.objects {
@@ -126,6 +159,11 @@ impl GenScene {
             );
             nodes.push(json!({"mesh": meshes.len() - 1}));
         }
+        Geometry { bin, views, accessors, meshes, nodes }
+    }
+
+    /// The cameras, each with its node appended to `nodes`.
+    fn cameras_json(&self, nodes: &mut Vec<Value>) -> Vec<Value> {
         let mut cameras = vec![];
         for (i, cam) in self.cameras.iter().enumerate() {
             // Camera frame: glTF cameras look down their local -Z with +Y up.
@@ -138,8 +176,12 @@ impl GenScene {
             nodes.push(json!({"name": format!("view{i}"), "camera": i,
                 "translation": cam.from.to_array(), "rotation": q.to_array()}));
         }
-        let materials: Vec<Value> = self
-            .materials
+        cameras
+    }
+
+    /// The materials as glTF metallic-roughness materials with their extensions.
+    fn materials_json(&self) -> Vec<Value> {
+        self.materials
             .iter()
             .map(|m| {
                 let mut pbr = json!({"baseColorFactor": [m.base_color.x, m.base_color.y, m.base_color.z, 1.0],
@@ -159,7 +201,11 @@ impl GenScene {
                 }
                 mat
             })
-            .collect();
+            .collect()
+    }
+
+    /// Writes the textures as PNG files beside the scene and returns their image entries.
+    fn write_textures(&self, dir: &Path, name: &str) -> Result<Vec<Value>, TrainError> {
         let mut images = vec![];
         for (i, tex) in self.textures.iter().enumerate() {
             let file = format!("{name}_tex{i}.png");
@@ -170,27 +216,6 @@ impl GenScene {
             .map_err(TrainError::from)?;
             images.push(json!({"uri": file}));
         }
-        let textures: Vec<Value> = (0..images.len()).map(|i| json!({"source": i, "sampler": 0})).collect();
-        let bin_name = format!("{name}.bin");
-        let doc = json!({
-            "asset": {"version": "2.0", "generator": "rtd datagen"},
-            "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior"],
-            "scene": 0,
-            "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
-            "nodes": nodes, "meshes": meshes, "cameras": cameras, "materials": materials,
-            "textures": textures, "images": images,
-            "samplers": [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}],
-            "accessors": accessors, "bufferViews": views,
-            "buffers": [{"uri": bin_name, "byteLength": bin.len()}],
-        });
-        let write_bytes = |path: &Path, bytes: &[u8]| {
-            rtd_image::write_atomic(path, |w| {
-                std::io::Write::write_all(w, bytes).map_err(|e| rtd_image::ImageError::io(path, e))
-            })
-            .map_err(TrainError::from)
-        };
-        write_bytes(&dir.join(&bin_name), &bin)?;
-        let text = serde_json::to_vec_pretty(&doc).map_err(|e| TrainError::msg(dir, e.to_string()))?;
-        write_bytes(&dir.join(format!("{name}.gltf")), &text)
+        Ok(images)
     }
 }

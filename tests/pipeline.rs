@@ -1,0 +1,97 @@
+//! The pipeline as a library call: render + guide + denoise without the binary, the same bytes
+//! as `rtd render`, cancellation between passes, and settings checked before any work.
+
+mod common;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use common::cli::{cornell_path, rtd};
+use rtd::denoise::Denoiser;
+use rtd::guide::GuideSettings;
+use rtd::image::{Layer, Progress, Quiet, Tonemap};
+use rtd::pipeline::{Budget, CameraChoice, Pipeline, PipelineError, SceneView};
+use rtd::render::RenderSettings;
+
+fn cornell() -> SceneView {
+    SceneView::load(&common::repo_path("scenes/cornell-box.gltf"), &CameraChoice::Default, None).unwrap()
+}
+
+#[test]
+fn render_and_denoise_through_the_library_give_the_cli_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let view = cornell();
+    let model = Denoiser::builtin().unwrap();
+    let run = Pipeline::new(&view, RenderSettings::new(40, 24).seed(3))
+        .denoise(&model)
+        .run(Budget::Samples(4), &Quiet)
+        .unwrap();
+    assert_eq!(run.film.spp, 4);
+    assert!(!run.interrupted);
+    let (Some(guide), Some(denoised)) = (&run.guide, &run.denoised) else { panic!("guide and denoiser ran") };
+    assert_eq!((denoised.width, denoised.height), (40, 24));
+    assert!(denoised.is_finite() && guide.guide.is_finite());
+    assert_ne!(*denoised, run.film.beauty(), "the denoiser changed the image");
+    let t = run.timings;
+    assert!(t.guide_s.is_some() && t.denoise_s.is_some() && t.pipeline_s() >= t.render_s);
+    for ext in ["exr", "png"] {
+        let lib = dir.path().join(format!("lib.{ext}"));
+        run.write(&lib, 0.0, Tonemap::Clamp).unwrap();
+        let cli = dir.path().join(format!("cli.{ext}"));
+        let c = cornell_path();
+        let args = ["render", &c, "--width", "40", "--height", "24", "--spp", "4", "--seed", "3", "--denoise", "-q"];
+        let out = rtd(&[&args[..], &["-o", cli.to_str().unwrap()]].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(std::fs::read(&lib).unwrap(), std::fs::read(&cli).unwrap(), "{ext}: library and CLI differ");
+    }
+    let layers = rtd::image::read_exr(&dir.path().join("lib.exr")).unwrap();
+    assert_eq!(layers.image(Layer::Beauty).as_ref(), Some(denoised));
+    assert_eq!(layers.image(Layer::Noisy), Some(run.film.beauty()));
+    assert_eq!(layers.image(Layer::Guide).as_ref(), Some(&guide.guide));
+    assert!(layers.plane(Layer::Ao).is_some() && layers.plane(Layer::Depth).is_some());
+}
+
+/// Cancels once `after` image rows are reported.
+struct CancelAfter {
+    rows: AtomicU64,
+    after: u64,
+}
+
+impl Progress for CancelAfter {
+    fn inc(&self, n: u64) {
+        self.rows.fetch_add(n, Ordering::SeqCst);
+    }
+    fn cancelled(&self) -> bool {
+        self.rows.load(Ordering::SeqCst) >= self.after
+    }
+}
+
+#[test]
+fn a_cancelled_run_keeps_whole_passes_and_still_denoises_them() {
+    let view = cornell();
+    let model = Denoiser::builtin().unwrap();
+    let settings = RenderSettings::new(32, 16);
+    // Cancelled 5 rows into the third pass: that pass finishes, no fourth starts.
+    let stop = CancelAfter { rows: AtomicU64::new(0), after: 2 * 16 + 5 };
+    let run = Pipeline::new(&view, settings.clone()).denoise(&model).run(Budget::Samples(8), &stop).unwrap();
+    assert_eq!(run.film.spp, 3);
+    assert!(run.interrupted && run.denoised.is_some());
+    let three = Pipeline::new(&view, settings.clone()).run(Budget::Samples(3), &Quiet).unwrap();
+    assert_eq!(run.film.beauty(), three.film.beauty(), "the kept passes are those of a 3-spp render");
+    assert!(!three.interrupted && three.guide.is_none() && three.denoised.is_none());
+    // Cancelled before any pass: no image at all, and an error saying so.
+    let at_once = CancelAfter { rows: AtomicU64::new(0), after: 0 };
+    let err = Pipeline::new(&view, settings).run(Budget::Samples(8), &at_once).err().unwrap();
+    assert!(matches!(err, PipelineError::NothingRendered), "{err}");
+}
+
+#[test]
+fn a_time_budget_renders_whole_passes_and_settings_are_checked_first() {
+    let view = cornell();
+    let run = Pipeline::new(&view, RenderSettings::new(16, 16)).run(Budget::Time(Default::default()), &Quiet).unwrap();
+    assert_eq!(run.film.spp, 1, "a zero budget still renders one pass");
+    let bad = Pipeline::new(&view, RenderSettings::new(0, 16)).run(Budget::Samples(1), &Quiet).err().unwrap();
+    assert!(bad.to_string().contains("0x16"), "{bad}");
+    let guide = GuideSettings::new(8, 8);
+    let err = Pipeline::new(&view, RenderSettings::new(16, 16)).guide(guide).run(Budget::Samples(1), &Quiet);
+    assert!(err.err().unwrap().to_string().contains("8x8"));
+}
