@@ -11,6 +11,7 @@ use rtd_denoise::{DenoiseInput, Denoiser};
 use rtd_image::metrics::{metrics, Metrics};
 use rtd_image::{HdrImage, Layer, Layers, Progress};
 use rtd_train::data::{load_views, View};
+use rtd_train::dataset::Manifest;
 use serde::Serialize;
 
 use crate::{BenchError, METRIC_BORDER};
@@ -120,6 +121,17 @@ pub fn validation_report(
     save: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<ValidationReport, BenchError> {
+    let manifest = Manifest::load(data)?;
+    if !manifest.noisy_spp.contains(&spp) {
+        let have: Vec<String> = manifest.noisy_spp.iter().map(u32::to_string).collect();
+        return Err(BenchError::msg(
+            data,
+            format!("has no noisy render at {spp} spp (it has {} spp)", have.join(", ")),
+        ));
+    }
+    if let Some(dir) = save {
+        std::fs::create_dir_all(dir).map_err(|e| BenchError::io(dir, e))?;
+    }
     let train = load_views(data, false)?;
     let val = load_views(data, true)?;
     progress.start(val.len() as u64 + 1, "evaluate");

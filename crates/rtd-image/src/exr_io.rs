@@ -1,4 +1,3 @@
-use std::io::Write;
 use std::path::Path;
 
 use exr::prelude::{
@@ -7,7 +6,7 @@ use exr::prelude::{
 };
 
 use crate::layer::{Channels, Layer};
-use crate::{write_atomic, HdrImage, ImageError, MAX_DIMENSION};
+use crate::{write_bytes_atomic, HdrImage, ImageError, MAX_DIMENSION};
 
 /// Named float channels of one size: the content of a one-part EXR.
 ///
@@ -109,7 +108,7 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
     // exr needs a seekable writer: encode to memory, then write the bytes atomically.
     let mut encoded = std::io::Cursor::new(Vec::new());
     image.write().to_buffered(&mut encoded).map_err(|e| ImageError::decode(path, e))?;
-    write_atomic(path, |w| w.write_all(encoded.get_ref()).map_err(|e| ImageError::io(path, e)))
+    write_bytes_atomic(path, encoded.get_ref())
 }
 
 /// Reads every channel of the first part of an EXR (flat, largest resolution level), as f32.

@@ -2,7 +2,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use crate::{write_atomic, HdrImage, ImageError, ImageFormat, MAX_DIMENSION};
+use crate::{write_bytes_atomic, HdrImage, ImageError, ImageFormat, MAX_DIMENSION};
 
 /// How linear radiance is mapped into [0,1] before sRGB encoding.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -71,7 +71,7 @@ pub fn write_ldr(path: &Path, image: &HdrImage, exposure: f32, tonemap: Tonemap)
         .ok_or_else(|| ImageError::invalid(path, "pixel buffer does not match image size"))?;
     let mut encoded = std::io::Cursor::new(Vec::new());
     buf.write_to(&mut encoded, format).map_err(|e| ImageError::decode(path, e))?;
-    write_atomic(path, |w| std::io::Write::write_all(w, encoded.get_ref()).map_err(|e| ImageError::io(path, e)))
+    write_bytes_atomic(path, encoded.get_ref())
 }
 
 /// Reads a PNG or JPEG as sRGB-encoded LDR and returns it as linear RGB in [0,1].

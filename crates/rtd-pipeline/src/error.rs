@@ -15,13 +15,19 @@ pub enum PipelineError {
     /// An image could not be read or written.
     #[error(transparent)]
     Image(#[from] rtd_image::ImageError),
-    /// The camera asked for does not exist or cannot be built.
-    #[error("{path}: {message}")]
+    /// The camera asked for does not exist.
+    #[error("{path}: {source}")]
     Camera {
         /// The scene file.
         path: PathBuf,
-        /// What is wrong.
-        message: String,
+        /// Which camera was missing, and which exist.
+        source: rtd_scene::CameraError,
+    },
+    /// A look-at camera was asked for with its position equal to its target.
+    #[error("{path}: --look-from and --look-at are the same point")]
+    LookAtItself {
+        /// The scene file.
+        path: PathBuf,
     },
     /// An input file lacks the layer the pipeline needs.
     #[error("{path}: {message}")]

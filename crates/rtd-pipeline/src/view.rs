@@ -53,16 +53,16 @@ impl SceneView {
             scene.environment = Environment::parse(env)?;
         }
         let load_s = t.elapsed().as_secs_f64();
-        let camera_error = |message: String| PipelineError::Camera { path: path.to_path_buf(), message };
+        let camera_error = |source| PipelineError::Camera { path: path.to_path_buf(), source };
         let (camera, camera_warning) = match camera {
             CameraChoice::LookAt { from, at, fov } => {
                 if from == at {
-                    return Err(camera_error("--look-from and --look-at are the same point".into()));
+                    return Err(PipelineError::LookAtItself { path: path.to_path_buf() });
                 }
                 (Camera::look_at(*from, *at, *fov), None)
             }
-            CameraChoice::Named(name) => scene.select_camera(Some(name)).map_err(|e| camera_error(e.to_string()))?,
-            CameraChoice::Default => scene.select_camera(None).map_err(|e| camera_error(e.to_string()))?,
+            CameraChoice::Named(name) => scene.select_camera(Some(name)).map_err(camera_error)?,
+            CameraChoice::Default => scene.select_camera(None).map_err(camera_error)?,
         };
         let mut warnings = scene.warnings.clone();
         warnings.extend(camera_warning);

@@ -14,16 +14,11 @@
 //! full mixture pdf (one-sample MIS over lobes). Opaque lobes are two-sided.
 
 use glam::{Vec2, Vec3};
+use rtd_image::luminance;
 use std::f32::consts::FRAC_1_PI;
 
 use crate::microfacet::{fresnel_dielectric, fresnel_schlick, reflect, refract, Ggx};
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
-
-/// Relative luminance (Rec. 709).
-#[inline]
-pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
 
 /// The lobes of the glTF BSDF.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -9,8 +9,8 @@ use std::f32::consts::PI;
 
 use rtd_scene::{Environment, Light, Scene};
 
-use crate::bsdf::luminance;
 use crate::sampling::{sample_triangle, sample_uniform_sphere, Distribution1D};
+use rtd_image::luminance;
 
 /// One light of the closed set.
 #[derive(Debug, Clone, Copy)]

@@ -163,10 +163,7 @@ impl Manifest {
     fn save(&self, dir: &Path) -> Result<(), TrainError> {
         let path = dir.join("manifest.json");
         let text = serde_json::to_vec_pretty(self).map_err(|e| TrainError::msg(&path, e.to_string()))?;
-        rtd_image::write_atomic(&path, |w| {
-            std::io::Write::write_all(w, &text).map_err(|e| rtd_image::ImageError::io(&path, e))
-        })?;
-        Ok(())
+        Ok(rtd_image::write_bytes_atomic(&path, &text)?)
     }
 }
 

@@ -327,10 +327,7 @@ struct Run {
 }
 
 fn save_record(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
-    rtd_image::write_atomic(path, |w| {
-        std::io::Write::write_all(w, bytes).map_err(|e| rtd_image::ImageError::io(path, e))
-    })?;
-    Ok(())
+    Ok(rtd_image::write_bytes_atomic(path, bytes)?)
 }
 
 /// Mean scores of `denoiser` on the validation `views` at `spp`, beside the noisy input's.

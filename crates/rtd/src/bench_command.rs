@@ -91,11 +91,6 @@ fn etrt(args: &EtrtArgs) -> anyhow::Result<()> {
 
 fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
     let model = args.denoiser.load()?;
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
-    if let Some(dir) = &args.save_images {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create directory", dir.display()))?;
-    }
     let bar = TaskBar::new(args.quiet);
     let report = rtd_bench::validation::validation_report(
         &args.data,
@@ -107,6 +102,8 @@ fn validation(args: &ValidationArgs) -> anyhow::Result<()> {
     );
     bar.finish();
     let report = report?;
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     write_json(&args.output.join("report.json"), &report)?;
     let md = report.markdown();
     rtd_image::write_bytes_atomic(&args.output.join("report.md"), md.as_bytes())?;
