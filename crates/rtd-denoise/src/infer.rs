@@ -261,7 +261,7 @@ impl Denoiser {
                 let (x0, y0) = ((tx as i64 - m).max(-p), (ty as i64 - m).max(-p));
                 let (x1, y1) = (((tx + tw) as i64 + m).min(wp as i64 + p), ((ty + th) as i64 + m).min(hp as i64 + p));
                 let (iw, ih) = ((x1 - x0) as usize, (y1 - y0) as usize);
-                let tile = self.run_tile(planes, (ow, oh), t, x0, y0, iw, ih, scratch);
+                let tile = self.run_tile(planes, (ow, oh), t, (x0, y0, iw, ih), scratch);
                 // Keep the tile's interior, each pixel where it came from.
                 let (ox, oy) = ((tx as i64 - x0) as usize, (ty as i64 - y0) as usize);
                 for c in 0..3 {
@@ -277,19 +277,15 @@ impl Denoiser {
         out
     }
 
-    /// One window of `tw`×`th` pixels whose top-left is (x0, y0) in the coordinates of the
+    /// One window `(x0, y0, tw, th)`: `tw`×`th` pixels whose top-left is (x0, y0) in the coordinates of the
     /// `size` image transformed by `t` (pixels outside it repeat the nearest edge pixel).
     /// Returns 3 × th × tw encoded colour.
-    #[allow(clippy::too_many_arguments)]
     fn run_tile(
         &self,
         planes: &[f32],
         size: (usize, usize),
         t: Dihedral,
-        x0: i64,
-        y0: i64,
-        tw: usize,
-        th: usize,
+        (x0, y0, tw, th): (i64, i64, usize, usize),
         scratch: &mut Scratch,
     ) -> Vec<f32> {
         let (ow, oh) = size;

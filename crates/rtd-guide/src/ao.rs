@@ -197,17 +197,15 @@ fn interpolate(
     (wsum > 0.0 && hi - lo <= REFINE_SPREAD).then(|| sum / wsum)
 }
 
-/// Computes AO for a `width`×`height` image of optional points. AO is evaluated directly on a
+/// Computes AO for a `width`×`height` image of optional points (`point(i)` for pixel `i`). AO is evaluated directly on a
 /// lattice every `step` pixels and interpolated between lattice points on the pixel's surface.
 /// Pixels where that is not safe go to a lattice of half the step, evaluated only where such
 /// pixels need it, and so on; what is left at step 1 is evaluated directly.
-#[allow(clippy::too_many_arguments)]
 pub fn ao_image(
     scene: &Scene,
     bvh: &SceneBvh,
     point: impl Fn(usize) -> Option<AoPoint> + Sync,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     dirs: &[Vec3],
     radius: f32,
     step: u32,

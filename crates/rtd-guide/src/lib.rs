@@ -300,7 +300,7 @@ impl GuidePass {
         let radius =
             settings.ao_radius.unwrap_or(if bounds.is_empty() { 1.0 } else { 0.1 * bounds.diagonal().length() });
         let dirs = pattern(settings.ao_rays);
-        let ao = ao::ao_image(scene, bvh, |i| centre[i], w, h, &dirs, radius, settings.ao_step);
+        let ao = ao::ao_image(scene, bvh, |i| centre[i], (w, h), &dirs, radius, settings.ao_step);
         let albedo = HdrImage::from_pixels(w, h, albedo);
         let normal = HdrImage::from_pixels(w, h, normal);
         let guide = HdrImage::from_pixels(w, h, albedo.pixels.par_iter().zip(&ao).map(|(a, o)| *a * *o).collect());

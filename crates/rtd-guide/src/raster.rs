@@ -246,7 +246,8 @@ where
             depth[..n].fill(f32::NEG_INFINITY);
             cover[..n].fill(Cover::NONE);
             for &i in &bins[(ty as u32 * tiles_x + tx) as usize] {
-                raster_tri(scene, &tris, i, x0, y0, tw, th, &offsets, reach, &mut depth[..n], &mut cover[..n]);
+                let tile = TileRect { x0, y0, w: tw, h: th };
+                raster_tri(scene, &tris, i, tile, &offsets, reach, (&mut depth[..n], &mut cover[..n]));
             }
             for (k, px) in cover[..n].chunks(SAMPLES).enumerate() {
                 // Barycentrics only for the samples' final triangles.
@@ -292,22 +293,27 @@ impl ScreenTri {
     }
 }
 
-/// Rasterises screen triangle `index` into a tile's sample buffers (greater depth key wins; ties
-/// keep the first).
-#[allow(clippy::too_many_arguments)]
+/// A tile of the image: its top-left pixel and its size.
+#[derive(Clone, Copy)]
+struct TileRect {
+    x0: u32,
+    y0: u32,
+    w: usize,
+    h: usize,
+}
+
+/// Rasterises screen triangle `index` into a tile's sample buffers, depth keys and coverage
+/// (greater depth key wins; ties keep the first).
 fn raster_tri(
     scene: &Scene,
     tris: &[ScreenTri],
     index: u32,
-    x0: u32,
-    y0: u32,
-    tw: usize,
-    th: usize,
+    tile: TileRect,
     offsets: &[Vec2; SAMPLES],
     reach: f32,
-    depth: &mut [f32],
-    cover: &mut [Cover],
+    (depth, cover): (&mut [f32], &mut [Cover]),
 ) {
+    let TileRect { x0, y0, w: tw, h: th } = tile;
     let t = &tris[index as usize];
     let [a, b, c] = t.v;
     // Edge functions as planes e(p) = A·(x − x0) + B·(y − y0) + C over the tile, set up in f64
