@@ -8,8 +8,9 @@ use std::process::Command;
 use rtd::image::Quiet;
 use rtd::render::SPP_LADDER;
 use rtd::train::dataset::{generate_dataset, DatasetOptions, Manifest, Split, ViewRecord};
-use rtd::train::train::{train, TrainOptions};
+use rtd::train::train::train;
 use rtd::train::TrainError;
+use rtd::train::TrainOptions;
 
 fn tiny_dataset(dir: &Path) -> Manifest {
     let options = DatasetOptions::default().scenes(3).views_per_scene(1).size(24).reference_spp(16).validation_every(3);

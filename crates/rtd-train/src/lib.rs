@@ -1,11 +1,13 @@
 //! Self-contained training for rtd's denoiser: the procedural scene generator
 //! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]), the training loop
-//! ([`train`]), its curves ([`plot`]) and the validation report ([`evaluate`]).
+//! ([`train`]) with its [`TrainOptions`] ([`options`]) and its curves ([`plot`]). The validation
+//! benchmark that scores a model on a dataset's held-out views is `rtd_bench::validation`.
 
 #![warn(missing_docs)]
 
 pub mod data;
 pub mod dataset;
+pub mod options;
 pub mod plot;
 pub mod scenegen;
 pub mod train;
@@ -14,6 +16,8 @@ use std::path::{Path, PathBuf};
 
 // The one progress trait, from the image crate; `crate::Progress` names it inside this crate.
 use rtd_image::Progress;
+
+pub use options::TrainOptions;
 
 /// Errors from dataset generation and training; each names the file concerned.
 #[derive(Debug, thiserror::Error)]
@@ -35,7 +39,7 @@ pub enum TrainError {
         message: String,
     },
     /// Training options that cannot work, or not on the dataset they were given (see
-    /// [`train::TrainOptions::validate`]); nothing was loaded or written.
+    /// [`TrainOptions::validate`]); nothing was loaded or written.
     #[error("{dataset}: {message}")]
     InvalidOptions {
         /// The dataset directory the options were checked against.

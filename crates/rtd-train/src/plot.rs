@@ -52,7 +52,8 @@ pub fn write_training_curves(path: &Path, state: &TrainState) -> Result<(), Trai
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::train::{EpochRecord, TrainOptions, ValidationScores};
+    use crate::train::{EpochRecord, ValidationScores};
+    use crate::TrainOptions;
 
     /// A run of two epochs; `validated` says whether they were scored on validation views.
     fn state(validated: bool) -> TrainState {

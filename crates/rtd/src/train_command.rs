@@ -4,7 +4,8 @@ use std::path::Path;
 
 use rtd_denoise::DenoiserConfig;
 use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions, Split};
-use rtd_train::train::{EpochRecord, TrainOptions, TrainState};
+use rtd_train::train::{EpochRecord, TrainState};
+use rtd_train::TrainOptions;
 
 use crate::args::{DatagenArgs, SplitArg, TrainArgs};
 use crate::progress::TaskBar;

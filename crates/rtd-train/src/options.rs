@@ -1,0 +1,293 @@
+//! [`TrainOptions`]: what a training run does (network, schedule, loss, crops), with the
+//! setters that build it and the checks against a dataset that [`crate::train::train`] runs
+//! before it writes anything.
+
+use std::path::{Path, PathBuf};
+
+use rtd_denoise::DenoiserConfig;
+use serde::{Deserialize, Serialize};
+
+use crate::data::DROP_PROBABILITY;
+use crate::dataset::Manifest;
+use crate::TrainError;
+
+/// What a training run does: the network, the schedule, the loss and the crops. Start from
+/// [`TrainOptions::default`] and change fields with the chained setters below, e.g.
+/// `TrainOptions::default().steps(500).batch(4, 32)`; [`TrainOptions::validate`] checks the
+/// result against a dataset, and [`train`] calls it before it writes anything.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TrainOptions {
+    /// The network to train (saved as `model.json` at the end).
+    pub config: DenoiserConfig,
+    /// Seed for the initial weights and for every batch's crops and augmentations.
+    pub seed: u64,
+    /// Optimiser steps in all (at least 1).
+    pub steps: u64,
+    /// Crops per batch (at least 1).
+    pub batch: usize,
+    /// Crop side in pixels: a positive multiple of the network's alignment, at most the
+    /// dataset's view sides.
+    pub crop: usize,
+    /// Peak learning rate of the warm-up + cosine schedule ([`TrainOptions::learning_rate_at`]).
+    pub learning_rate: f64,
+    /// Steps per epoch (at least 1): validation and a checkpoint follow each epoch.
+    pub epoch_steps: u64,
+    /// Noisy sample count the validation views are denoised at every epoch.
+    pub validation_spp: u32,
+    /// Start from these weights (a `model.bpk` whose `.json` config equals `config`) instead
+    /// of random ones: fine-tuning. The optimiser and schedule start afresh.
+    #[serde(default)]
+    pub init: Option<PathBuf>,
+    /// Weight of [`display_loss`], the squared error on the display transform the PSNR is
+    /// measured on, added to the L1 [`training_loss`] (0: off).
+    #[serde(default)]
+    pub display_loss: f32,
+    /// Train only on the noisy renders at these sample counts (`None`: every stored count).
+    #[serde(default)]
+    pub spp_levels: Option<Vec<u32>>,
+    /// Probability that a crop loses its albedo+normal layers, and (independently) its AO+depth
+    /// layers, so the model also serves inputs with the guide RGB alone.
+    #[serde(default = "default_guide_drop")]
+    pub guide_drop: f32,
+}
+
+fn default_guide_drop() -> f32 {
+    DROP_PROBABILITY
+}
+
+impl Default for TrainOptions {
+    /// The shipped U-Net, 3000 steps of 8 crops of 64² at a peak rate of 0.002, epochs of 200
+    /// steps validated at 8 spp, seed 1, plain L1 on every stored sample count.
+    fn default() -> Self {
+        TrainOptions {
+            config: DenoiserConfig::unet(),
+            seed: 1,
+            steps: 3000,
+            batch: 8,
+            crop: 64,
+            learning_rate: 2e-3,
+            epoch_steps: 200,
+            validation_spp: 8,
+            init: None,
+            display_loss: 0.0,
+            spp_levels: None,
+            guide_drop: DROP_PROBABILITY,
+        }
+    }
+}
+
+impl TrainOptions {
+    /// Sets the step count.
+    pub fn steps(mut self, n: u64) -> Self {
+        self.steps = n;
+        self
+    }
+    /// Sets the seed.
+    pub fn seed(mut self, s: u64) -> Self {
+        self.seed = s;
+        self
+    }
+    /// Sets the network config.
+    pub fn config(mut self, c: DenoiserConfig) -> Self {
+        self.config = c;
+        self
+    }
+    /// Sets batch size and crop side.
+    pub fn batch(mut self, batch: usize, crop: usize) -> Self {
+        self.batch = batch;
+        self.crop = crop;
+        self
+    }
+    /// Sets the peak learning rate.
+    pub fn learning_rate(mut self, lr: f64) -> Self {
+        self.learning_rate = lr;
+        self
+    }
+    /// Starts from a trained model's weights (fine-tuning).
+    pub fn init(mut self, model: Option<PathBuf>) -> Self {
+        self.init = model;
+        self
+    }
+    /// Sets the weight of [`display_loss`] in the loss (0: off; negative weights become 0).
+    pub fn display_loss(mut self, w: f32) -> Self {
+        self.display_loss = w.max(0.0);
+        self
+    }
+    /// Trains only on the noisy renders at these sample counts (`None`: all of them).
+    pub fn spp_levels(mut self, levels: Option<Vec<u32>>) -> Self {
+        self.spp_levels = levels;
+        self
+    }
+    /// Sets the probability that a crop loses each optional pair of guide layers (clamped to
+    /// [0, 1]).
+    pub fn guide_drop(mut self, p: f32) -> Self {
+        self.guide_drop = p.clamp(0.0, 1.0);
+        self
+    }
+    /// Sets steps per epoch.
+    pub fn epoch_steps(mut self, n: u64) -> Self {
+        self.epoch_steps = n;
+        self
+    }
+
+    /// Learning rate at `step`: linear warm-up over 5% of the steps, then cosine decay to 1%.
+    pub fn learning_rate_at(&self, step: u64) -> f64 {
+        let warm = (self.steps / 20).max(1);
+        if step < warm {
+            return self.learning_rate * (step + 1) as f64 / warm as f64;
+        }
+        let t = (step - warm) as f64 / (self.steps - warm).max(1) as f64;
+        self.learning_rate * (0.01 + 0.99 * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()))
+    }
+
+    /// Checks that these options can train on the dataset in `data`, whose manifest is
+    /// `manifest`, before any view is loaded or any file written: a network with at least one
+    /// level; at least one step, epoch step and crop per batch; a finite learning rate above 0;
+    /// a finite display-loss weight of at least 0; a guide-drop probability in [0, 1]; a crop
+    /// side that is a positive multiple of the network's alignment and at most the dataset's
+    /// view sides; training and validation sample counts the dataset stores; and training
+    /// views. The error is [`TrainError::InvalidOptions`], naming `data`.
+    pub fn validate(&self, data: &Path, manifest: &Manifest) -> Result<(), TrainError> {
+        match self.problem(manifest) {
+            Some(message) => Err(TrainError::InvalidOptions { dataset: data.to_path_buf(), message }),
+            None => Ok(()),
+        }
+    }
+
+    /// What makes these options unusable on the dataset of `manifest`, if anything.
+    fn problem(&self, manifest: &Manifest) -> Option<String> {
+        if self.config.channels.is_empty() {
+            return Some("the network has no resolution levels".into());
+        }
+        let counts =
+            [("step count", self.steps), ("epoch length", self.epoch_steps), ("batch size", self.batch as u64)];
+        if let Some((what, _)) = counts.iter().find(|(_, n)| *n == 0) {
+            return Some(format!("the {what} is 0; it must be at least 1"));
+        }
+        if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
+            return Some(format!("the learning rate {} is not a finite number above 0", self.learning_rate));
+        }
+        if !(self.display_loss.is_finite() && self.display_loss >= 0.0) {
+            return Some(format!("the display loss weight {} is not a finite number of at least 0", self.display_loss));
+        }
+        if !(0.0..=1.0).contains(&self.guide_drop) {
+            return Some(format!("the guide drop probability {} is not in [0, 1]", self.guide_drop));
+        }
+        let (crop, align, side) = (self.crop, self.config.alignment(), manifest.options.size as usize);
+        if crop == 0 || crop % align != 0 {
+            return Some(format!(
+                "the crop side {crop} px is not a positive multiple of {align}, the network's alignment"
+            ));
+        }
+        if crop > side {
+            return Some(format!("the crop side {crop} px is larger than the dataset's {side}x{side} px views"));
+        }
+        let stored = &manifest.noisy_spp;
+        if let Some(levels) = &self.spp_levels {
+            let missing: Vec<u32> = levels.iter().copied().filter(|l| !stored.contains(l)).collect();
+            if levels.is_empty() {
+                return Some("the list of sample counts to train on is empty".into());
+            }
+            if !missing.is_empty() {
+                return Some(format!(
+                    "the dataset has no noisy renders at the sample counts {missing:?} (it stores {stored:?})"
+                ));
+            }
+        }
+        if !stored.contains(&self.validation_spp) {
+            return Some(format!(
+                "the dataset has no noisy renders at the validation sample count {} (it stores {stored:?})",
+                self.validation_spp
+            ));
+        }
+        if !manifest.views.iter().any(|v| !v.validation) {
+            return Some("the dataset has no training views".into());
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A manifest of two `size`² views, one for training and one for validation, at every
+    /// stored sample count.
+    fn manifest(size: u32) -> Manifest {
+        let view = |validation| crate::dataset::ViewRecord {
+            file: String::new(),
+            scene: 0,
+            view: 0,
+            layout: crate::scenegen::Layout::ClosedRoom,
+            validation,
+            reference_spp: 16,
+            reference_relmse: 0.0,
+            seconds: 0.0,
+        };
+        Manifest {
+            options: crate::dataset::DatasetOptions::default().size(size),
+            noisy_spp: rtd_render::SPP_LADDER.to_vec(),
+            views: vec![view(false), view(true)],
+            rejected: vec![],
+        }
+    }
+
+    /// The error message of validating `options` against `manifest`, checked to be an
+    /// [`TrainError::InvalidOptions`] naming the dataset.
+    fn refusal(options: &TrainOptions, manifest: &Manifest) -> String {
+        match options.validate(Path::new("tiny-data"), manifest) {
+            Err(e @ TrainError::InvalidOptions { .. }) => {
+                let text = e.to_string();
+                assert!(text.starts_with("tiny-data: ") && !text.contains('\n'), "{text}");
+                text
+            }
+            other => panic!("expected InvalidOptions, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn options_are_checked_against_the_dataset() {
+        let m = manifest(24);
+        // Crops up to the views' side, in steps of the network's alignment (4 for the U-Net).
+        for crop in [4, 16, 24] {
+            assert!(TrainOptions::default().batch(2, crop).validate(Path::new("d"), &m).is_ok(), "{crop}");
+        }
+        let e = refusal(&TrainOptions::default().batch(2, 32), &m);
+        assert!(e.contains("crop side 32 px is larger than the dataset's 24x24 px views"), "{e}");
+        let e = refusal(&TrainOptions::default().batch(2, 18), &m);
+        assert!(e.contains("crop side 18 px is not a positive multiple of 4"), "{e}");
+        assert!(refusal(&TrainOptions::default().batch(2, 0), &m).contains("crop side 0 px"));
+        // A two-level network aligns to 2, so 18 is fine for it.
+        let two = TrainOptions::default().config(DenoiserConfig::new(vec![8, 8])).batch(2, 18);
+        assert!(two.validate(Path::new("d"), &m).is_ok());
+        let none = TrainOptions::default().config(DenoiserConfig::new(vec![])).batch(2, 16);
+        assert!(refusal(&none, &m).contains("no resolution levels"));
+        // Counts, rates, weights and probabilities.
+        let ok = TrainOptions::default().batch(2, 16);
+        assert!(refusal(&ok.clone().batch(0, 16), &m).contains("batch size is 0"));
+        assert!(refusal(&ok.clone().steps(0), &m).contains("step count is 0"));
+        assert!(refusal(&ok.clone().epoch_steps(0), &m).contains("epoch length is 0"));
+        for lr in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+            assert!(refusal(&ok.clone().learning_rate(lr), &m).contains("learning rate"), "{lr}");
+        }
+        for w in [-1.0, f32::NAN, f32::INFINITY] {
+            let o = TrainOptions { display_loss: w, ..ok.clone() };
+            assert!(refusal(&o, &m).contains("display loss weight"), "{w}");
+        }
+        for p in [-0.1, 1.5, f32::NAN] {
+            let o = TrainOptions { guide_drop: p, ..ok.clone() };
+            assert!(refusal(&o, &m).contains("guide drop probability"), "{p}");
+        }
+        assert!(TrainOptions { guide_drop: 1.0, ..ok.clone() }.validate(Path::new("d"), &m).is_ok());
+        // Sample counts the dataset lacks, for training or for validation.
+        let e = refusal(&ok.clone().spp_levels(Some(vec![3, 8])), &m);
+        assert!(e.contains("sample counts [3]") && e.contains("[1, 2, 4, 8, 16, 32, 64]"), "{e}");
+        assert!(refusal(&ok.clone().spp_levels(Some(vec![])), &m).contains("empty"));
+        let e = refusal(&TrainOptions { validation_spp: 5, ..ok.clone() }, &m);
+        assert!(e.contains("validation sample count 5"), "{e}");
+        // A dataset of validation views alone has nothing to train on.
+        let mut held_out = manifest(24);
+        held_out.views.retain(|v| v.validation);
+        assert!(refusal(&ok, &held_out).contains("no training views"));
+    }
+}
