@@ -121,6 +121,50 @@ fn denoise_reads_exr_and_png_inputs() {
 }
 
 #[test]
+fn denoise_reads_blenders_multipart_exr_as_it_comes() {
+    use rtd::image::Layer;
+    let dir = tempfile::tempdir().unwrap();
+    let noisy = noisy_exr(dir.path(), 24, 20);
+    let l = rtd::image::read_exr(&noisy).unwrap();
+    let planes = |layer: Layer, names: [&'static str; 3]| {
+        let img = l.image(layer).unwrap();
+        names.iter().enumerate().map(|(c, n)| (*n, img.channel(c))).collect::<Vec<_>>()
+    };
+    let mut combined = planes(Layer::Beauty, ["R", "G", "B"]);
+    combined.push(("A", vec![1.0; 24 * 20]));
+    let blender = dir.path().join("cycles.exr");
+    common::write_multipart_exr(
+        &blender,
+        (24, 20),
+        &[
+            ("ViewLayer.Combined", combined),
+            ("ViewLayer.Denoising Albedo", planes(Layer::Albedo, ["R", "G", "B"])),
+            ("ViewLayer.Denoising Normal", planes(Layer::Normal, ["X", "Y", "Z"])),
+            ("ViewLayer.Denoising Depth", vec![("Z", l.plane(Layer::Depth).unwrap().to_vec())]),
+        ],
+    );
+    // The same file for colour, albedo and normal: each is found under Blender's pass name, so
+    // the result is the one of rtd's own layers.
+    let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
+    for (input, out) in [(&blender, &a), (&noisy, &b)] {
+        let o = rtd(&["denoise", "--color", s(input), "--albedo", s(input), "--normal", s(input), "-o", s(out)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "Blender's file denoises as rtd's");
+    // A file without a colour pass: the error lists the layers it has.
+    let normals_only = dir.path().join("normals.exr");
+    common::write_multipart_exr(
+        &normals_only,
+        (24, 20),
+        &[("ViewLayer.Denoising Normal", planes(Layer::Normal, ["X", "Y", "Z"]))],
+    );
+    let out = dir.path().join("c.exr");
+    let o = rtd(&["denoise", "--color", s(&normals_only), "--guide", s(&noisy), "-o", s(&out)]);
+    assert_fails(&o, "normals.exr: no `*.Combined.*`, R,G,B channels (layers found: ViewLayer.Denoising Normal)");
+    assert!(!out.exists());
+}
+
+#[test]
 fn denoise_bad_inputs_fail_cleanly_without_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -81,3 +81,22 @@ pub fn furnace(env: f32) -> Scene {
 pub fn mean(pixels: &[Vec3]) -> f64 {
     pixels.iter().map(|p| (p.x + p.y + p.z) as f64 / 3.0).sum::<f64>() / pixels.len().max(1) as f64
 }
+
+/// One part of a multi-part EXR: its name and its (channel, samples) pairs.
+pub type ExrPart<'a> = (&'a str, Vec<(&'a str, Vec<f32>)>);
+
+/// Writes a multi-part EXR as Blender 5 writes its render passes: one part per pass, each named
+/// `ViewLayer.<pass>`, with its own channels (`R,G,B[,A]` or `X,Y,Z`).
+pub fn write_multipart_exr(path: &std::path::Path, (w, h): (usize, usize), parts: &[ExrPart]) {
+    use exr::prelude::*;
+    let layers: Vec<Layer<AnyChannels<FlatSamples>>> = parts
+        .iter()
+        .map(|(name, channels)| {
+            let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+                channels.iter().map(|(n, s)| AnyChannel::new(*n, FlatSamples::F32(s.clone()))).collect();
+            Layer::new((w, h), LayerAttributes::named(*name), Encoding::FAST_LOSSLESS, AnyChannels::sort(list))
+        })
+        .collect();
+    let image = Image::from_layers(ImageAttributes::new(IntegerBounds::from_dimensions((w, h))), layers);
+    image.write().to_file(path).expect("write a multi-part EXR");
+}

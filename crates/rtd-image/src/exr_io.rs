@@ -6,7 +6,7 @@ use exr::prelude::{
 };
 
 use crate::layer::{Channels, Layer};
-use crate::{write_bytes_atomic, HdrImage, ImageError, MAX_DIMENSION};
+use crate::{write_bytes_atomic, HdrImage, ImageError, MAX_DIMENSION, MAX_PIXELS};
 
 /// Named float channels of one size: the content of a one-part EXR.
 ///
@@ -79,6 +79,44 @@ impl Layers {
         Some(HdrImage::from_planes(self.width, self.height, r, g, b))
     }
 
+    /// The image of `layer` in a file from any renderer: rtd's own channel names, then the same
+    /// prefix with the other vector naming (`normal.R/G/B`), then the names other software
+    /// gives the pass ([`Layer::studio_names`], under any prefix such as Blender's view layer).
+    pub fn find_image(&self, layer: Layer) -> Option<HdrImage> {
+        let other = match layer.channels() {
+            Channels::Xyz => Channels::Rgb,
+            _ => Channels::Xyz,
+        };
+        if let Some(img) = self.image(layer).or_else(|| self.image_as(layer, other)) {
+            return Some(img);
+        }
+        let suffixes: &[[&str; 3]] = &[["R", "G", "B"], ["X", "Y", "Z"]];
+        for studio in layer.studio_names() {
+            for prefix in self.prefixes().iter().filter(|p| *p == studio || p.ends_with(&format!(".{studio}"))) {
+                for names in suffixes {
+                    let plane = |n: &str| self.get(&format!("{prefix}.{n}"));
+                    if let (Some(r), Some(g), Some(b)) = (plane(names[0]), plane(names[1]), plane(names[2])) {
+                        return Some(HdrImage::from_planes(self.width, self.height, r, g, b));
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// The distinct layer prefixes present (the part of each channel name before its last dot;
+    /// empty for bare channels), in file order: what an error lists when a layer is missing.
+    pub fn prefixes(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for (name, _) in &self.channels {
+            let prefix = name.rsplit_once('.').map_or("", |(p, _)| p).to_string();
+            if !out.contains(&prefix) {
+                out.push(prefix);
+            }
+        }
+        out
+    }
+
     /// The samples of a one-value-per-pixel layer, if present.
     pub fn plane(&self, layer: Layer) -> Option<&[f32]> {
         layer.channel_names().first().and_then(|n| self.get(n))
@@ -111,32 +149,64 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
     write_bytes_atomic(path, encoded.get_ref())
 }
 
-/// Reads every channel of the first part of an EXR (flat, largest resolution level), as f32.
-/// Channels of other layers in the same part keep their full `layer.channel` names.
+/// Reads every channel of every part of an EXR (flat, largest resolution level), as f32. A
+/// channel is named `part.channel` when its part has a name (multi-part files such as Blender's,
+/// whose parts are `ViewLayer.Combined`, `ViewLayer.Denoising Albedo`, …), else by its own name;
+/// channel names that already carry the part's name keep it once. Every part must have the same
+/// size. Sizes are checked from the headers before anything is decoded.
 pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
     if !path.exists() {
         return Err(ImageError::missing(path));
     }
+    check_exr_headers(path)?;
     let image = read_all_flat_layers_from_file(path).map_err(|e| ImageError::decode(path, e))?;
-    let layer = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    if w == 0 || h == 0 || w > MAX_DIMENSION as usize || h > MAX_DIMENSION as usize {
-        return Err(ImageError::invalid(path, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
-    }
-    let prefix = layer.attributes.layer_name.as_ref().map(|n| n.to_string());
+    let first = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;
+    let (w, h) = (first.size.width(), first.size.height());
     let mut out = Layers::new(w as u32, h as u32);
-    for ch in &layer.channel_data.list {
-        let name = match &prefix {
-            Some(p) => format!("{p}.{}", ch.name),
-            None => ch.name.to_string(),
-        };
-        let samples: Vec<f32> = ch.sample_data.values_as_f32().collect();
-        if samples.len() != w * h {
-            return Err(ImageError::invalid(path, format!("channel {name} is subsampled, which rtd does not read")));
+    for part in &image.layer_data {
+        if (part.size.width(), part.size.height()) != (w, h) {
+            let name = part.attributes.layer_name.as_ref().map(|n| n.to_string()).unwrap_or_default();
+            return Err(ImageError::invalid(
+                path,
+                format!("part {name:?} is {}x{}, another part is {w}x{h}", part.size.width(), part.size.height()),
+            ));
         }
-        out.channels.push((name, samples));
+        let prefix = part.attributes.layer_name.as_ref().map(|n| n.to_string());
+        for ch in &part.channel_data.list {
+            let own = ch.name.to_string();
+            let name = match &prefix {
+                Some(p) if !own.starts_with(&format!("{p}.")) => format!("{p}.{own}"),
+                _ => own,
+            };
+            let samples: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            if samples.len() != w * h {
+                return Err(ImageError::invalid(
+                    path,
+                    format!("channel {name} is subsampled, which rtd does not read"),
+                ));
+            }
+            out.channels.push((name, samples));
+        }
     }
     Ok(out)
+}
+
+/// Refuses, from the headers alone, an EXR whose parts are empty, wider or taller than
+/// [`MAX_DIMENSION`], or larger than [`MAX_PIXELS`] together.
+fn check_exr_headers(path: &Path) -> Result<(), ImageError> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| ImageError::decode(path, e))?;
+    let mut total = 0usize;
+    for header in meta.headers.iter() {
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        if w == 0 || h == 0 || w > MAX_DIMENSION as usize || h > MAX_DIMENSION as usize {
+            return Err(ImageError::invalid(path, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
+        }
+        total = total.saturating_add(w * h);
+    }
+    if total > MAX_PIXELS {
+        return Err(ImageError::invalid(path, format!("{total} pixels in all parts exceed {MAX_PIXELS}")));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -182,6 +252,51 @@ mod tests {
             })
             .collect();
         assert!(bytes.iter().all(|b| *b == bytes[0]));
+    }
+
+    #[test]
+    fn a_header_declaring_a_huge_image_is_refused_before_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bomb.exr");
+        let mut layers = Layers::new(4, 4);
+        layers.put_image(Layer::Beauty, &HdrImage::new(4, 4));
+        write_exr(&path, &layers).unwrap();
+        // Patch the data window (box2i: xMin, yMin, xMax, yMax) to 100000 × 100000 pixels.
+        let mut bytes = std::fs::read(&path).unwrap();
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+        for (k, v) in [0i32, 0, 99_999, 99_999].iter().enumerate() {
+            bytes[at + 4 * k..at + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        let err = read_exr(&path).unwrap_err().to_string();
+        assert!(err.contains("bomb.exr") && err.contains("100000x100000"), "{err}");
+    }
+
+    #[test]
+    fn every_part_of_a_multipart_file_is_read_under_its_name() {
+        use exr::prelude::{Image, ImageAttributes, IntegerBounds, WritableImage};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("parts.exr");
+        let part = |name: &str, channels: &[(&str, f32)]| {
+            let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+                channels.iter().map(|(n, v)| AnyChannel::new(*n, FlatSamples::F32(vec![*v; 6]))).collect();
+            ExrLayer::new((3, 2), LayerAttributes::named(name), Encoding::FAST_LOSSLESS, AnyChannels::sort(list))
+        };
+        let parts = vec![
+            part("ViewLayer.Combined", &[("R", 1.0), ("G", 2.0), ("B", 3.0), ("A", 1.0)]),
+            part("ViewLayer.Denoising Normal", &[("X", 0.0), ("Y", 0.0), ("Z", 1.0)]),
+        ];
+        Image::from_layers(ImageAttributes::new(IntegerBounds::from_dimensions((3, 2))), parts)
+            .write()
+            .to_file(&path)
+            .unwrap();
+        let back = read_exr(&path).unwrap();
+        assert_eq!(back.get("ViewLayer.Combined.G").unwrap(), &[2.0; 6]);
+        assert_eq!(back.prefixes(), ["ViewLayer.Combined", "ViewLayer.Denoising Normal"]);
+        assert_eq!(back.find_image(Layer::Beauty).unwrap().pixels[0], Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(back.find_image(Layer::Normal).unwrap().pixels[5], Vec3::Z);
+        assert_eq!(back.find_image(Layer::Albedo), None);
     }
 
     #[test]

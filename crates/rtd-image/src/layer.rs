@@ -79,6 +79,23 @@ impl Layer {
     }
 }
 
+impl Layer {
+    /// Names other software gives this layer's pass, matched as the last part of a prefix
+    /// (Blender's `ViewLayer.Combined.R`, `ViewLayer.Denoising Albedo.G`, in one multi-layer
+    /// part or one part per pass).
+    pub fn studio_names(self) -> &'static [&'static str] {
+        match self {
+            Layer::Beauty => &["Combined"],
+            Layer::Albedo => &["Denoising Albedo"],
+            Layer::Normal => &["Denoising Normal"],
+            Layer::Depth => &["Denoising Depth"],
+            Layer::Noisy | Layer::NoisyAt(_) | Layer::Reference | Layer::Guide | Layer::Ao | Layer::NoiseEstimate => {
+                &[]
+            }
+        }
+    }
+}
+
 /// `prefix.channel`, or the bare channel for the empty prefix.
 fn join(prefix: &str, channel: &str) -> String {
     if prefix.is_empty() {

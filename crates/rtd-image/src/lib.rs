@@ -35,3 +35,8 @@ pub use progress::{Progress, Quiet};
 /// Largest width or height rtd accepts for any image it reads, renders, denoises or writes.
 /// Every size check in rtd uses this one constant.
 pub const MAX_DIMENSION: u32 = 16384;
+
+/// Largest image area rtd renders or decodes (64 Mpx, 8192²). A render's film keeps 52 bytes
+/// per pixel (f64 beauty, f32 AOVs), so this bounds it near 3.5 GB on the 24 GiB machines rtd
+/// targets; a decoded EXR is checked against it from its headers, before any pixel is read.
+pub const MAX_PIXELS: usize = 1 << 26;

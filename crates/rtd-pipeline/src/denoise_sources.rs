@@ -126,22 +126,19 @@ impl DenoiseOutcome {
     }
 }
 
-/// Reads the image of `layer` from `path`: from an EXR that layer if present, else `R,G,B`
-/// (normals may also be `normal.R/G/B` or `X,Y,Z`); from PNG/JPEG the sRGB-decoded RGB, with
-/// 8-bit normals decoded from n·0.5 + 0.5.
+/// Reads the image of `layer` from `path`: from an EXR (one part or several) that layer under
+/// rtd's or another renderer's name ([`Layers::find_image`]), else the beauty; from PNG/JPEG the
+/// sRGB-decoded RGB, with 8-bit normals decoded from n·0.5 + 0.5.
 fn read_layer(path: &Path, layer: Layer) -> Result<HdrImage, PipelineError> {
     let vector = layer.channels() == Channels::Xyz;
     let img = match ImageFormat::from_path(path)? {
         ImageFormat::Exr => {
             let layers = rtd_image::read_exr(path)?;
-            let named = layers.image(layer).or_else(|| layers.image_as(layer, Channels::Rgb));
-            named
-                .or_else(|| layers.image(Layer::Beauty))
-                .or_else(|| if vector { layers.image_as(Layer::Beauty, Channels::Xyz) } else { None })
-                .ok_or_else(|| PipelineError::Input {
-                    path: path.to_path_buf(),
-                    message: format!("no `{}.*` or R,G,B channels", layer.prefix()),
-                })?
+            let found = layers.find_image(layer).or_else(|| layers.find_image(Layer::Beauty));
+            found.ok_or_else(|| PipelineError::Input {
+                path: path.to_path_buf(),
+                message: missing_layer(layer, &layers),
+            })?
         }
         ImageFormat::Png | ImageFormat::Jpeg => {
             let img = rtd_image::read_ldr(path)?;
@@ -156,6 +153,17 @@ fn read_layer(path: &Path, layer: Layer) -> Result<HdrImage, PipelineError> {
         }
     };
     Ok(img)
+}
+
+/// What a file without the layer rtd looked for says: the names it tried and the layers found.
+fn missing_layer(layer: Layer, layers: &Layers) -> String {
+    let mut tried: Vec<String> =
+        Some(layer.prefix()).filter(|p| !p.is_empty()).map(|p| format!("`{p}.*`")).into_iter().collect();
+    tried.extend(layer.studio_names().iter().map(|n| format!("`*.{n}.*`")));
+    tried.push("R,G,B".into());
+    let found: Vec<String> =
+        layers.prefixes().into_iter().map(|p| if p.is_empty() { "(bare channels)".into() } else { p }).collect();
+    format!("no {} channels (layers found: {})", tried.join(", "), found.join(", "))
 }
 
 fn same_size(path: &Path, img: &HdrImage, color: &HdrImage) -> Result<(), PipelineError> {

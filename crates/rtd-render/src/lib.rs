@@ -22,12 +22,10 @@ pub use bsdf::{Bsdf, BsdfParams, BsdfSample};
 pub use bvh::{SceneBvh, MAX_BUNDLE, NO_TRIANGLE};
 pub use film::Film;
 pub use lights::LightSet;
-pub use render::{
-    PathTracer, RenderScene, RenderSettings, RenderStats, Workers, MAX_DEPTH, MAX_PIXELS, MAX_SPP, SPP_LADDER,
-};
+pub use render::{PathTracer, RenderScene, RenderSettings, RenderStats, Workers, MAX_DEPTH, MAX_SPP, SPP_LADDER};
 pub use sampler::Sampler;
 
-use rtd_image::MAX_DIMENSION;
+use rtd_image::{MAX_DIMENSION, MAX_PIXELS};
 
 /// Errors from setting up or running a render; each says which setting is out of range.
 #[derive(Debug, thiserror::Error)]

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use rtd_image::{Progress, Quiet, MAX_DIMENSION};
+use rtd_image::{Progress, Quiet, MAX_DIMENSION, MAX_PIXELS};
 use rtd_scene::{Camera, Scene};
 
 use crate::bvh::SceneBvh;
@@ -16,9 +16,6 @@ use crate::sampler::Sampler;
 use crate::sampling::sample_tent;
 use crate::RenderError;
 
-/// Largest accepted image area: the film keeps 52 bytes per pixel (f64 beauty, f32 AOVs), so
-/// this bounds it near 3.5 GB on the 24 GiB machines rtd targets.
-pub const MAX_PIXELS: u64 = 1 << 26;
 /// Largest accepted samples per pixel in one call.
 pub const MAX_SPP: u32 = 1 << 24;
 /// Largest accepted maximum path depth.
@@ -98,7 +95,7 @@ impl RenderSettings {
         if width == 0 || height == 0 || width > MAX_DIMENSION || height > MAX_DIMENSION {
             return Err(RenderError::Resolution { width, height });
         }
-        if width as u64 * height as u64 > MAX_PIXELS {
+        if width as u64 * height as u64 > MAX_PIXELS as u64 {
             return Err(RenderError::TooManyPixels { width, height });
         }
         if self.max_depth > MAX_DEPTH {
