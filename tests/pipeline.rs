@@ -93,5 +93,35 @@ fn a_time_budget_renders_whole_passes_and_settings_are_checked_first() {
     assert!(bad.to_string().contains("0x16"), "{bad}");
     let guide = GuideSettings::new(8, 8);
     let err = Pipeline::new(&view, RenderSettings::new(16, 16)).guide(guide).run(Budget::Samples(1), &Quiet);
-    assert!(err.err().unwrap().to_string().contains("8x8"));
+    assert!(matches!(err, Err(PipelineError::GuideSize { guide: (8, 8), render: (16, 16) })));
+    // Guide settings a library caller can set by field are checked before the render too.
+    let g = GuideSettings::new(16, 16);
+    for (bad, needle) in [
+        (GuideSettings { ao_rays: 0, ..g.clone() }, "AO rays 0"),
+        (GuideSettings { ao_radius: Some(f32::NAN), ..g.clone() }, "AO radius NaN"),
+        (GuideSettings { ao_step: 0, ..g.clone() }, "AO step"),
+        (g.clone().threads(Some(0)), "threads"),
+    ] {
+        let err = Pipeline::new(&view, RenderSettings::new(16, 16)).guide(bad).run(Budget::Samples(1), &Quiet);
+        assert!(err.err().unwrap().to_string().contains(needle), "{needle}");
+    }
+}
+
+#[test]
+fn a_look_at_camera_is_checked_by_the_library() {
+    let path = common::repo_path("scenes/cornell-box.gltf");
+    let look = |from: glam::Vec3, fov: f32| {
+        SceneView::load(&path, &CameraChoice::LookAt { from, at: glam::Vec3::ZERO, fov }, None)
+    };
+    assert!(look(glam::Vec3::Z, 40.0).is_ok());
+    for (from, fov) in
+        [(glam::Vec3::Z, 0.0), (glam::Vec3::Z, 180.0), (glam::Vec3::Z, f32::NAN), (glam::Vec3::NAN, 40.0)]
+    {
+        let err = look(from, fov).err().unwrap();
+        assert!(
+            matches!(err, PipelineError::LookAtInvalid { .. }) && err.to_string().contains("cornell-box.gltf"),
+            "{err}"
+        );
+    }
+    assert!(matches!(look(glam::Vec3::ZERO, 40.0), Err(PipelineError::LookAtItself { .. })));
 }

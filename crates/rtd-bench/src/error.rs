@@ -20,14 +20,6 @@ pub enum BenchError {
         /// What is wrong.
         message: String,
     },
-    /// A report could not be serialised.
-    #[error("{path}: cannot serialise the report: {source}")]
-    Json {
-        /// The report file.
-        path: PathBuf,
-        /// What serde said.
-        source: serde_json::Error,
-    },
     /// Image I/O failed.
     #[error(transparent)]
     Image(#[from] rtd_image::ImageError),
@@ -37,6 +29,9 @@ pub enum BenchError {
     /// Rendering failed.
     #[error(transparent)]
     Render(#[from] rtd_render::RenderError),
+    /// The guide pass's settings are invalid.
+    #[error(transparent)]
+    Guide(#[from] rtd_guide::GuideError),
     /// The denoiser failed.
     #[error(transparent)]
     Denoise(#[from] rtd_denoise::DenoiseError),

@@ -2,16 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
-
 use crate::etrt::{EtrtImages, EtrtReport};
 use crate::BenchError;
 
-/// Writes `value` as pretty JSON to `path`, atomically.
-pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), BenchError> {
-    let bytes = serde_json::to_vec_pretty(value).map_err(|source| BenchError::Json { path: path.into(), source })?;
-    Ok(rtd_image::write_bytes_atomic(path, &bytes)?)
-}
+use rtd_image::write_json;
 
 /// Writes `text` to `path`, atomically.
 pub fn write_text(path: &Path, text: &str) -> Result<(), BenchError> {

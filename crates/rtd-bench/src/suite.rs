@@ -12,8 +12,9 @@ use rtd_render::{RenderSettings, SPP_LADDER};
 use serde::{Deserialize, Serialize};
 
 use crate::etrt::{run_etrt, EtrtOptions, EtrtReport};
-use crate::report_files::{write_etrt, write_json, write_text};
+use crate::report_files::{write_etrt, write_text};
 use crate::{BenchError, METRIC_BORDER};
+use rtd_image::write_json;
 
 /// One point of the sweep.
 #[derive(Clone, Debug, Serialize, Deserialize)]

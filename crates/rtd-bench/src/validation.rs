@@ -161,6 +161,11 @@ pub fn validation_report(
             let path = dir.join(format!("{stem}.exr"));
             let layers = rtd_image::read_exr(&path)?;
             let img = layers.image(Layer::Beauty).ok_or_else(|| BenchError::msg(&path, "no R,G,B channels"))?;
+            let (w, h) = (v.reference.width, v.reference.height);
+            if (img.width, img.height) != (w, h) {
+                let message = format!("image is {}x{} but the view is {w}x{h}", img.width, img.height);
+                return Err(BenchError::msg(&path, message));
+            }
             methods.push((Method::External(name.clone()), img));
         }
         views.push(ViewResult {

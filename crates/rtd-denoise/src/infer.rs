@@ -111,6 +111,10 @@ impl Denoiser {
         {
             return Err(DenoiseError::model(name, format!("implausible channel list {:?}", config.channels)));
         }
+        if !(1..=15).contains(&config.prong) || config.bottleneck_blocks > 64 {
+            let (prong, blocks) = (config.prong, config.bottleneck_blocks);
+            return Err(DenoiseError::model(name, format!("implausible prong {prong} or bottleneck blocks {blocks}")));
+        }
         let device = Device::flex();
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights))
             .map_err(|e| DenoiseError::model(name, format!("corrupt weights: {e}")))?;

@@ -81,6 +81,44 @@ impl GuideSettings {
         self.threads = t;
         self
     }
+
+    /// Checks the settings, naming the first problem: the size and threads as a render's, then
+    /// the AO ray count, radius and step.
+    pub fn validate(&self) -> Result<(), GuideError> {
+        RenderSettings::new(self.width, self.height).threads(self.threads).validate()?;
+        if self.ao_rays == 0 || self.ao_rays > MAX_AO_RAYS {
+            return Err(GuideError::AoRays(self.ao_rays));
+        }
+        if let Some(r) = self.ao_radius {
+            if !(r > 0.0 && r.is_finite()) {
+                return Err(GuideError::AoRadius(r));
+            }
+        }
+        if self.ao_step == 0 {
+            return Err(GuideError::AoStep);
+        }
+        Ok(())
+    }
+}
+
+/// Most AO rays per pixel the guide pass accepts.
+pub const MAX_AO_RAYS: u32 = 4096;
+
+/// Errors from the guide pass's settings.
+#[derive(Debug, thiserror::Error)]
+pub enum GuideError {
+    /// The size or thread count is out of range, as for a render.
+    #[error(transparent)]
+    Settings(#[from] RenderError),
+    /// The AO ray count is 0 or above [`MAX_AO_RAYS`].
+    #[error("AO rays {0} are outside 1..={MAX_AO_RAYS}")]
+    AoRays(u32),
+    /// The AO radius is not a positive finite number.
+    #[error("AO radius {0} must be a positive finite number")]
+    AoRadius(f32),
+    /// The sparse AO step is 0.
+    #[error("the AO step must be at least 1")]
+    AoStep,
 }
 
 /// One pixel's filtered guide values and its centre sample's surface point.
@@ -216,8 +254,8 @@ impl GuidePass {
         bvh: &SceneBvh,
         camera: &Camera,
         settings: &GuideSettings,
-    ) -> Result<Self, RenderError> {
-        RenderSettings::new(settings.width, settings.height).threads(settings.threads).validate()?;
+    ) -> Result<Self, GuideError> {
+        settings.validate()?;
         let workers = Workers::new(settings.threads)?;
         Ok(workers.install(|| Self::render_inner(scene, bvh, camera, settings)))
     }

@@ -47,6 +47,13 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
     write_atomic(path, |w| w.write_all(bytes).map_err(|e| ImageError::io(path, e)))
 }
 
+/// Writes `value` as pretty JSON to `path` through [`write_atomic`] (reports, manifests).
+pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Result<(), ImageError> {
+    let bytes = serde_json::to_vec_pretty(value)
+        .map_err(|e| ImageError::invalid(path, format!("cannot serialise as JSON: {e}")))?;
+    write_bytes_atomic(path, &bytes)
+}
+
 /// Flushes a directory's entries to disk, so a rename in it survives a power cut. Where the
 /// platform cannot open a directory as a file this does nothing.
 fn sync_dir(dir: &Path) -> std::io::Result<()> {

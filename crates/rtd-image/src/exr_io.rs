@@ -5,7 +5,7 @@ use exr::prelude::{
     LayerAttributes, LineOrder, SmallVec, WritableImage,
 };
 
-use crate::layer::{Channels, Layer};
+use crate::layer::{join, Channels, Layer};
 use crate::{write_bytes_atomic, HdrImage, ImageError, MAX_DIMENSION, MAX_PIXELS};
 
 /// Named float channels of one size: the content of a one-part EXR.
@@ -66,17 +66,13 @@ impl Layers {
     /// The image under `layer`'s prefix with the channel naming `channels` (for files from
     /// other software, which may store normals as `normal.R/G/B`).
     pub fn image_as(&self, layer: Layer, channels: Channels) -> Option<HdrImage> {
-        let suffixes = match channels {
-            Channels::Rgb => ["R", "G", "B"],
-            Channels::Xyz => ["X", "Y", "Z"],
-            Channels::Scalar(_) => return None,
-        };
-        let prefix = layer.prefix();
-        let full = |n: &str| if prefix.is_empty() { n.to_string() } else { format!("{prefix}.{n}") };
-        let r = self.get(&full(suffixes[0]))?;
-        let g = self.get(&full(suffixes[1]))?;
-        let b = self.get(&full(suffixes[2]))?;
-        Some(HdrImage::from_planes(self.width, self.height, r, g, b))
+        self.image_under(&layer.prefix(), channels.triple()?)
+    }
+
+    /// The image in channels `prefix.R/G/B` (or whichever `suffixes`), if all three exist.
+    fn image_under(&self, prefix: &str, suffixes: [&str; 3]) -> Option<HdrImage> {
+        let [r, g, b] = suffixes.map(|n| self.get(&join(prefix, n)));
+        Some(HdrImage::from_planes(self.width, self.height, r?, g?, b?))
     }
 
     /// The image of `layer` in a file from any renderer: rtd's own channel names, then the same
@@ -90,14 +86,11 @@ impl Layers {
         if let Some(img) = self.image(layer).or_else(|| self.image_as(layer, other)) {
             return Some(img);
         }
-        let suffixes: &[[&str; 3]] = &[["R", "G", "B"], ["X", "Y", "Z"]];
+        let namings = [Channels::Rgb, Channels::Xyz].map(|c| c.triple().unwrap_or_default());
         for studio in layer.studio_names() {
             for prefix in self.prefixes().iter().filter(|p| *p == studio || p.ends_with(&format!(".{studio}"))) {
-                for names in suffixes {
-                    let plane = |n: &str| self.get(&format!("{prefix}.{n}"));
-                    if let (Some(r), Some(g), Some(b)) = (plane(names[0]), plane(names[1]), plane(names[2])) {
-                        return Some(HdrImage::from_planes(self.width, self.height, r, g, b));
-                    }
+                if let Some(img) = namings.iter().find_map(|names| self.image_under(prefix, *names)) {
+                    return Some(img);
                 }
             }
         }

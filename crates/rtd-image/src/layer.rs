@@ -13,6 +13,17 @@ pub enum Channels {
     Scalar(&'static str),
 }
 
+impl Channels {
+    /// The three channel suffixes of an image layer (`R,G,B` or `X,Y,Z`); None for a scalar.
+    pub fn triple(self) -> Option<[&'static str; 3]> {
+        match self {
+            Channels::Rgb => Some(["R", "G", "B"]),
+            Channels::Xyz => Some(["X", "Y", "Z"]),
+            Channels::Scalar(_) => None,
+        }
+    }
+}
+
 /// A layer of an rtd EXR file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Layer {
@@ -69,13 +80,11 @@ impl Layer {
 
     /// The full channel names, in order (`albedo.R`, `albedo.G`, `albedo.B`; `R`, `G`, `B`).
     pub fn channel_names(self) -> Vec<String> {
-        let suffixes: &[&str] = match self.channels() {
-            Channels::Rgb => &["R", "G", "B"],
-            Channels::Xyz => &["X", "Y", "Z"],
-            Channels::Scalar(c) => return vec![join(&self.prefix(), c)],
-        };
         let prefix = self.prefix();
-        suffixes.iter().map(|s| join(&prefix, s)).collect()
+        match self.channels() {
+            Channels::Scalar(c) => vec![join(&prefix, c)],
+            image => image.triple().into_iter().flatten().map(|s| join(&prefix, s)).collect(),
+        }
     }
 }
 
@@ -97,7 +106,7 @@ impl Layer {
 }
 
 /// `prefix.channel`, or the bare channel for the empty prefix.
-fn join(prefix: &str, channel: &str) -> String {
+pub(crate) fn join(prefix: &str, channel: &str) -> String {
     if prefix.is_empty() {
         channel.to_string()
     } else {

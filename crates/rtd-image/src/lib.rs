@@ -1,15 +1,14 @@
 //! Image buffers and image file I/O for rtd.
 //!
 //! - [`HdrImage`]: a linear RGB float image, the currency of the renderer and denoiser.
-//! - [`Layers`]: named float channels of one size, written to and read from a one-part EXR
-//!   (`R,G,B`, `albedo.R`, `normal.X`, `depth.Z`, ...).
-//! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`].
+//! - [`Layers`]: named float channels of one size, written to a one-part EXR and read from
+//!   EXRs of one part or many (`R,G,B`, `albedo.R`, `normal.X`, `depth.Z`, ...).
 //! - [`Layer`]: the EXR layer vocabulary every writer and reader shares.
 //! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`].
 //! - Every write is atomic and durable: a temporary file in the target directory, `fsync`,
 //!   then a rename.
 //! - [`Progress`]: the one observer trait long library calls report to.
-//! - [`MAX_DIMENSION`]: the one size limit on any image side.
+//! - [`MAX_DIMENSION`] and [`MAX_PIXELS`]: the size limits on any image side and area.
 
 #![warn(missing_docs)]
 
@@ -23,7 +22,7 @@ mod ldr;
 pub mod metrics;
 mod progress;
 
-pub use atomic::{parent_dir, write_atomic, write_bytes_atomic};
+pub use atomic::{parent_dir, write_atomic, write_bytes_atomic, write_json};
 pub use error::ImageError;
 pub use exr_io::{read_exr, write_exr, Layers};
 pub use format::ImageFormat;

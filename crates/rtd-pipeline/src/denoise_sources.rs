@@ -66,7 +66,7 @@ impl DenoiseSources {
                 Some((ai, ni))
             }
             (None, None) => None,
-            _ => return Err(self.missing("albedo and normal must be given together")),
+            _ => return Err(PipelineError::Sources("albedo and normal must be given together")),
         };
         let guide = match (&self.guide, &albedo_normal) {
             (Some(g), _) => {
@@ -77,7 +77,11 @@ impl DenoiseSources {
             }
             // Without a guide image, the albedo stands in for material colour × AO.
             (None, Some((a, _))) => a.clone(),
-            (None, None) => return Err(self.missing("a guide (material colour × AO) or albedo with normal is needed")),
+            (None, None) => {
+                return Err(PipelineError::Sources(
+                    "a guide (material colour × AO) or an albedo with a normal is needed",
+                ))
+            }
         };
         let mut input = DenoiseInput::new(&color, &guide);
         if let Some((a, n)) = &albedo_normal {
@@ -105,10 +109,6 @@ impl DenoiseSources {
             inputs,
             nonfinite_input_values: count_nonfinite(&color),
         })
-    }
-
-    fn missing(&self, message: &str) -> PipelineError {
-        PipelineError::Input { path: self.color.clone(), message: message.into() }
     }
 }
 

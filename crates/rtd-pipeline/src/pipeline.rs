@@ -104,22 +104,24 @@ impl<'a> Pipeline<'a> {
         self.guide.clone().or_else(|| self.denoiser.map(|_| default()))
     }
 
-    /// Checks every stage's settings before any work.
+    /// Checks the render's and the guide pass's settings before any work.
     pub fn validate(&self) -> Result<(), PipelineError> {
         self.render.validate()?;
         if let Some(g) = self.guide_settings() {
+            g.validate()?;
             if (g.width, g.height) != (self.render.width, self.render.height) {
-                return Err(PipelineError::Render(rtd_render::RenderError::FilmSize {
-                    film: (g.width, g.height),
-                    settings: (self.render.width, self.render.height),
-                }));
+                return Err(PipelineError::GuideSize {
+                    guide: (g.width, g.height),
+                    render: (self.render.width, self.render.height),
+                });
             }
         }
         Ok(())
     }
 
     /// Runs every configured stage. `progress` sees a "render" phase (image rows, or
-    /// milliseconds of a time budget) and can cancel it between passes; the guide pass and
+    /// milliseconds of a time budget), then one-unit "guide" and "denoise" phases, and can
+    /// cancel the render between passes; the guide pass and
     /// the denoiser then still run on the passes finished, so an interrupted render keeps an
     /// image. Fails with [`PipelineError::NothingRendered`] if no pass finished.
     pub fn run(&self, budget: Budget, progress: &dyn Progress) -> Result<PipelineRun, PipelineError> {
@@ -152,16 +154,23 @@ impl<'a> Pipeline<'a> {
         };
         let scene = &self.view.scene;
         let guide = match self.guide_settings() {
-            Some(settings) => Some(GuidePass::render(&scene.scene, &scene.bvh, &self.view.camera, &settings)?),
+            Some(settings) => {
+                progress.start(1, "guide");
+                let pass = GuidePass::render(&scene.scene, &scene.bvh, &self.view.camera, &settings)?;
+                progress.inc(1);
+                Some(pass)
+            }
             None => None,
         };
         timings.guide_s = guide.as_ref().map(|g| g.seconds);
         let denoised = match (self.denoiser, &guide) {
             (Some(denoiser), Some(pass)) => {
-                let t = Instant::now();
+                progress.start(1, "denoise");
                 let beauty = film.beauty();
+                let t = Instant::now();
                 let out = denoiser.denoise(&denoise_input(&beauty, pass))?;
                 timings.denoise_s = Some(t.elapsed().as_secs_f64());
+                progress.inc(1);
                 Some(out)
             }
             _ => None,

@@ -56,6 +56,9 @@ impl SceneView {
         let camera_error = |source| PipelineError::Camera { path: path.to_path_buf(), source };
         let (camera, camera_warning) = match camera {
             CameraChoice::LookAt { from, at, fov } => {
+                if !(from.is_finite() && at.is_finite() && *fov > 0.0 && *fov < 180.0) {
+                    return Err(PipelineError::LookAtInvalid { path: path.to_path_buf(), fov: *fov });
+                }
                 if from == at {
                     return Err(PipelineError::LookAtItself { path: path.to_path_buf() });
                 }
@@ -75,7 +78,7 @@ impl SceneView {
 
     /// The warning a render (not a guide pass) of this view deserves: no light at all.
     pub fn lighting_warning(&self) -> Option<&'static str> {
-        self.scene.lights.is_empty().then_some("scene has no lights and no --env; the image will be black")
+        self.scene.lights.is_empty().then_some("scene has no lights and no environment; the image will be black")
     }
 
     /// The scene file's stem, for naming reports and figures.

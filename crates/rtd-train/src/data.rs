@@ -8,6 +8,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rtd_denoise::encode::{demod_albedo, demod_factor, encode_color_plane, encode_planes, Encoding};
+use rtd_denoise::planes::{OptionalPair, Plane};
 use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
 use rtd_image::{HdrImage, Layer};
 
@@ -201,16 +202,20 @@ impl CropSampler {
             };
             let n_px = e.w * e.h;
             for c in 0..INPUT_CHANNELS {
+                let p = Plane::of(c);
                 // Colour-carrying groups share one channel permutation.
-                let sc = match c {
-                    0..=8 => c / 3 * 3 + perm[c % 3],
+                let sc = match p {
+                    Plane::Color(k) => Plane::Color(perm[k]).index(),
+                    Plane::Guide(k) => Plane::Guide(perm[k]).index(),
+                    Plane::Albedo(k) => Plane::Albedo(perm[k]).index(),
                     _ => c,
                 };
-                let zero = (black && c < 3)
-                    || (drop_an && ((6..12).contains(&c) || c == 14))
-                    || (drop_ad && matches!(c, 12 | 13 | 15));
+                let color = matches!(p, Plane::Color(_));
+                let zero = (black && color)
+                    || (drop_an && p.pair() == Some(OptionalPair::AlbedoNormal))
+                    || (drop_ad && p.pair() == Some(OptionalPair::AoDepth));
                 // Without albedo, colour is not demodulated.
-                let plane = match (&e.plain, c < 3 && drop_an) {
+                let plane = match (&e.plain, color && drop_an) {
                     (Some((color, _)), true) => &color[sc * n_px..][..n_px],
                     _ => &e.planes[sc * n_px..][..n_px],
                 };
@@ -322,12 +327,13 @@ mod tests {
         assert_eq!(sampler(None).encoded.len(), 2);
         assert_eq!(sampler(Some(&[8, 16])).encoded.len(), 1);
         assert_eq!(sampler(Some(&[16])).encoded.len(), 0);
-        // Channel 14 flags the albedo + normal pair, channel 15 the AO + depth pair: 1 where
-        // given, 0 where the crop dropped them.
+        // The flag planes of the albedo + normal and the AO + depth pairs: 1 where given, 0
+        // where the crop dropped them.
+        let (an, ad) = (Plane::HasAlbedoNormal.index(), Plane::HasAoDepth.index());
         let flags = |p: f32| {
             let x = sampler(None).drop_probability(p).batch(5, 0, 64).inputs;
             let px = 64;
-            (0..64).map(|b| (x[(b * INPUT_CHANNELS + 14) * px], x[(b * INPUT_CHANNELS + 15) * px])).collect::<Vec<_>>()
+            (0..64).map(|b| (x[(b * INPUT_CHANNELS + an) * px], x[(b * INPUT_CHANNELS + ad) * px])).collect::<Vec<_>>()
         };
         assert!(flags(0.0).iter().all(|&f| f == (1.0, 1.0)));
         assert!(flags(1.0).iter().all(|&f| f == (0.0, 0.0)));

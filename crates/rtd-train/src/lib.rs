@@ -56,6 +56,9 @@ pub enum TrainError {
     /// Rendering failed.
     #[error(transparent)]
     Render(#[from] rtd_render::RenderError),
+    /// The guide pass's settings are invalid.
+    #[error(transparent)]
+    Guide(#[from] rtd_guide::GuideError),
     /// The denoiser failed.
     #[error(transparent)]
     Denoise(#[from] rtd_denoise::DenoiseError),

@@ -410,7 +410,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Maximum path depth (bounces).
-    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=rtd_render::MAX_DEPTH as i64))]
     pub max_depth: u32,
     /// Environment: R,G,B radiance or an equirectangular .exr map.
     #[arg(long)]
@@ -460,7 +460,7 @@ pub struct GuideArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Occlusion rays per AO evaluation.
-    #[arg(long, default_value_t = rtd_guide::DEFAULT_AO_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, default_value_t = rtd_guide::DEFAULT_AO_RAYS, value_parser = clap::value_parser!(u32).range(1..=rtd_guide::MAX_AO_RAYS as i64))]
     pub ao_rays: u32,
     /// AO radius in scene units (default: 10% of the scene's bounding-box diagonal).
     #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]

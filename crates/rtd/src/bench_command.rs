@@ -4,8 +4,9 @@ use anyhow::Context;
 use rtd_pipeline::{CameraChoice, SceneView};
 
 use crate::args::{BenchArgs, BenchCommand, EtrtArgs, PipelineArgs, SpeedArgs, SuiteArgs, ValidationArgs};
-use crate::output::{warn_all, write_json};
+use crate::output::warn_all;
 use crate::progress::TaskBar;
+use rtd_image::write_json;
 
 /// Runs `rtd bench …`.
 pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {

@@ -4,7 +4,8 @@
 use rtd_pipeline::{DenoiseOutcome, DenoiseSources};
 
 use crate::args::DenoiseArgs;
-use crate::output::{check_output, check_report_path, write_json};
+use crate::output::{check_output, check_report_path};
+use rtd_image::write_json;
 
 /// Runs `rtd denoise` and returns its report.
 pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseOutcome> {

@@ -7,7 +7,8 @@ use rtd_guide::{GuidePass, GuideSettings};
 use rtd_image::{ImageFormat, Tonemap};
 
 use crate::args::GuideArgs;
-use crate::output::{check_output, check_report_path, write_json};
+use crate::output::{check_output, check_report_path};
+use rtd_image::write_json;
 
 /// What `rtd guide --report` writes.
 #[derive(Debug, Clone, Serialize)]

@@ -1,10 +1,9 @@
 //! Output files of the commands: early checks that an output can be written (before minutes of
-//! work), and JSON reports written atomically.
+//! work), and warnings printed for the user.
 
 use std::path::Path;
 
 use anyhow::{bail, Context};
-use serde::Serialize;
 
 use rtd_image::ImageFormat;
 
@@ -34,13 +33,6 @@ fn existing_dir<'p>(path: &'p Path, what: &str) -> anyhow::Result<&'p Path> {
         bail!("{}: {what} directory {} does not exist", path.display(), dir.display());
     }
     Ok(dir)
-}
-
-/// Writes any serialisable report as pretty JSON, atomically.
-pub fn write_json<T: Serialize>(path: &Path, value: &T) -> anyhow::Result<()> {
-    let text = serde_json::to_string_pretty(value)?;
-    rtd_image::write_bytes_atomic(path, text.as_bytes())?;
-    Ok(())
 }
 
 /// Prints load warnings on standard error, each naming the scene file.

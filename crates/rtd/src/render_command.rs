@@ -8,8 +8,9 @@ use rtd_pipeline::{Budget, Pipeline, RenderReport};
 use rtd_render::RenderSettings;
 
 use crate::args::{RenderArgs, TonemapArg};
-use crate::output::{check_output, check_report_path, warn_all, write_json};
+use crate::output::{check_output, check_report_path, warn_all};
 use crate::progress::TaskBar;
+use rtd_image::write_json;
 
 /// Runs `rtd render` and returns its report.
 pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
