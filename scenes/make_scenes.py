@@ -293,7 +293,8 @@ def small_lights():
     t, n, uv = sphere([0.8, 0.3, 0.5], 0.3)
     b.mesh("copper-ball", t, b.material("copper", (0.955, 0.638, 0.538), metallic=1.0, roughness=0.15), smooth_normals=n, uvs=uv)
     b.mesh("pedestal", box_tris([1.3, 0.35, -0.2], [0.4, 0.7, 0.4]), b.material("pedestal", (0.7, 0.7, 0.7), roughness=0.5))
-    b.point_light("point", [-2.0, 2.5, 1.5], (1.0, 0.95, 0.9), 4.0)
+    # glTF point intensities are candela (photometric); rtd divides by 683 lm/W, so this is 4 W/sr.
+    b.point_light("point", [-2.0, 2.5, 1.5], (1.0, 0.95, 0.9), 4.0 * 683)
     b.camera("camera", [0.0, 1.4, 3.6], [0.0, 0.7, 0.0], 45)
     b.write("small-lights.gltf")
 

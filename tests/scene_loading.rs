@@ -278,8 +278,8 @@ fn cameras_and_lights() {
         (
             "extensions",
             json!({"KHR_lights_punctual": {"lights": [
-                {"type": "point", "color": [1.0, 0.5, 0.5], "intensity": 10.0},
-                {"type": "directional", "intensity": 3.0}
+                {"type": "point", "color": [1.0, 0.5, 0.5], "intensity": 6830.0},
+                {"type": "directional", "intensity": 2049.0}
             ]}}),
         ),
         ("extensionsUsed", json!(["KHR_lights_punctual"])),
@@ -301,9 +301,16 @@ fn cameras_and_lights() {
     let e = sc.select_camera(Some("7")).unwrap_err();
     assert_eq!(e, CameraError::IndexOutOfRange { index: 7, count: 2 });
     assert_eq!(e.to_string(), "camera index 7 out of range (scene has 2 cameras)");
+    // Photometric glTF intensities become radiometric ones at 683 lm/W: 6830 cd is 10 W/sr and
+    // 2049 lux is 3 W/m².
     assert!(sc
         .lights
         .contains(&Light::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::new(10.0, 5.0, 5.0) }));
+    let sun = sc.lights.iter().find_map(|l| match l {
+        Light::Directional { irradiance, .. } => Some(*irradiance),
+        _ => None,
+    });
+    assert_eq!(sun, Some(Vec3::splat(3.0)));
     // A −90° rotation about X turns the light's −Z into −Y: straight down.
     let down = sc.lights.iter().find_map(|l| match l {
         Light::Directional { direction, .. } => Some(*direction),

@@ -5,6 +5,7 @@ use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::image::Format;
 
 use crate::gltf_accessors::{check_buffer_views, check_indices, check_primitive, MeshSite};
+use crate::light::LUMENS_PER_WATT;
 use crate::{
     AlphaMode, Camera, Light, Material, Projection, Scene, SceneError, Texture, TextureRef, Triangle, UvTransform, Wrap,
 };
@@ -292,7 +293,8 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
 }
 
 fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light {
-    let color = Vec3::from(light.color()) * light.intensity();
+    // Photometric (cd, lux) to radiometric (W/sr, W/m²).
+    let color = Vec3::from(light.color()) * (light.intensity() / LUMENS_PER_WATT);
     let position = world.w_axis.truncate();
     let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
     match light.kind() {

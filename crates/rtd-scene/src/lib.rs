@@ -27,7 +27,7 @@ pub use camera_choice::CameraError;
 pub use environment::Environment;
 pub use error::{AccessorProblem, SceneError};
 pub use gltf_import::{load_gltf, SUPPORTED_GLTF_EXTENSIONS};
-pub use light::Light;
+pub use light::{Light, LUMENS_PER_WATT};
 pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TextureRef, UvTransform};
 pub use obj_import::load_obj;
 pub use scene::{Scene, Triangle};

@@ -1,15 +1,22 @@
 use glam::Vec3;
 
-/// A punctual (delta) light from `KHR_lights_punctual`.
+/// Luminous efficacy the glTF specification converts light units by: `KHR_lights_punctual`
+/// intensities are photometric (candela, lux), and 683 lm make one watt. Blender's exporter writes
+/// a P-watt point light as P/(4π) × 683 cd and an S W/m² sun as S × 683 lux.
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+/// A punctual (delta) light from `KHR_lights_punctual`, in radiometric units.
 ///
-/// Units: rtd uses the extension's photometric numbers directly as its radiometric scene
-/// units, with no 683 lm/W factor. A point or spot light of intensity I (candela) gives
-/// irradiance I/d² at distance d; a directional light of intensity E (lux) gives irradiance E.
-/// Emissive surfaces emit radiance emissive × emissive strength (nits) in the same units,
-/// so a white Lambertian surface under E = π has radiance 1.
+/// Units: the importer divides the extension's photometric intensities by [`LUMENS_PER_WATT`].
+/// A point or spot light of I candela has radiant intensity I/683 W/sr, so irradiance
+/// I/(683 d²) at distance d; a directional light of E lux gives irradiance E/683 W/m². A
+/// P-watt Blender point light therefore arrives as P/(4π) W/sr, as Cycles emits it. Emissive
+/// surfaces emit radiance emissive × emissive strength, unscaled, in the same units, so a white
+/// Lambertian surface under irradiance π has radiance 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Light {
-    /// Emits intensity `intensity` (colour × candela) equally in all directions.
+    /// Emits radiant intensity `intensity` (colour × candela ÷ 683, W/sr) equally in all
+    /// directions.
     Point {
         /// World position.
         position: Vec3,
