@@ -125,3 +125,40 @@ fn a_look_at_camera_is_checked_by_the_library() {
     }
     assert!(matches!(look(glam::Vec3::ZERO, 40.0), Err(PipelineError::LookAtItself { .. })));
 }
+
+/// The Cornell box with its camera made for `aspect` (written into `dir`).
+fn cornell_with_aspect(dir: &std::path::Path, aspect: f64) -> std::path::PathBuf {
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(common::repo_path("scenes/cornell-box.gltf")).unwrap()).unwrap();
+    doc["cameras"][0]["perspective"]["aspectRatio"] = serde_json::json!(aspect);
+    let path = dir.join("wide.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn the_image_size_follows_the_cameras_aspect_ratio_unless_both_sides_are_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let wide = SceneView::load(&cornell_with_aspect(dir.path(), 2.0), &CameraChoice::Default, None).unwrap();
+    assert_eq!(wide.camera.aspect_ratio, Some(2.0));
+    assert_eq!(wide.resolution(None, None), (512, 256, None));
+    assert_eq!(wide.resolution(Some(101), None), (101, 51, None));
+    assert_eq!(wide.resolution(None, Some(100)), (200, 100, None));
+    assert_eq!(wide.resolution(Some(300), Some(150)), (300, 150, None));
+    let (w, h, warning) = wide.resolution(Some(100), Some(100));
+    assert_eq!((w, h), (100, 100));
+    assert!(warning.unwrap().contains("aspect ratio 2.000 but the image is 100x100"));
+    // A file without an aspect ratio renders square by default.
+    assert_eq!(cornell().resolution(None, None), (512, 512, None));
+    assert_eq!(cornell().resolution(Some(64), None), (64, 64, None));
+    // The command line follows it: one side given sets the other; both given warn on a mismatch.
+    let scene = cornell_with_aspect(dir.path(), 16.0 / 9.0);
+    let (s, out) = (scene.to_str().unwrap(), dir.path().join("o.png"));
+    let o = rtd(&["render", s, "--width", "64", "--spp", "1", "-q", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success() && o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(image::image_dimensions(&out).unwrap(), (64, 36));
+    let o = rtd(&["render", s, "--width", "64", "--height", "64", "--spp", "1", "-q", "-o", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("warning") && err.contains("64x64"), "{err}");
+    assert_eq!(image::image_dimensions(&out).unwrap(), (64, 64));
+}

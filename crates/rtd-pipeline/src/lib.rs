@@ -23,4 +23,4 @@ pub use denoise_sources::{DenoiseOutcome, DenoiseSources};
 pub use error::PipelineError;
 pub use pipeline::{denoise_input, Budget, Pipeline, PipelineRun, StageTimings};
 pub use report::RenderReport;
-pub use view::{CameraChoice, SceneView};
+pub use view::{CameraChoice, SceneView, DEFAULT_WIDTH};

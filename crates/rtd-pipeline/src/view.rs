@@ -29,6 +29,9 @@ pub enum CameraChoice {
     },
 }
 
+/// Image width when neither side is given.
+pub const DEFAULT_WIDTH: u32 = 512;
+
 /// A loaded scene with its BVH, light set and chosen camera.
 pub struct SceneView {
     /// The scene file.
@@ -79,6 +82,30 @@ impl SceneView {
     /// The warning a render (not a guide pass) of this view deserves: no light at all.
     pub fn lighting_warning(&self) -> Option<&'static str> {
         self.scene.lights.is_empty().then_some("scene has no lights and no environment; the image will be black")
+    }
+
+    /// The image size for `width` and `height` as given (either may be absent): both given are
+    /// used as they are, with a warning if the camera was made for another aspect ratio; one
+    /// given sets the other from the camera's aspect ratio (square without one); none gives
+    /// [`DEFAULT_WIDTH`] wide. Returns (width, height, warning).
+    pub fn resolution(&self, width: Option<u32>, height: Option<u32>) -> (u32, u32, Option<String>) {
+        let aspect = self.camera.aspect_ratio;
+        let a = aspect.unwrap_or(1.0) as f64;
+        let side = |x: f64| (x.round() as u32).clamp(1, rtd_image::MAX_DIMENSION);
+        match (width, height) {
+            (Some(w), Some(h)) => {
+                let warning = aspect.filter(|r| ((w as f64 / h as f64) / *r as f64 - 1.0).abs() > 0.01).map(|r| {
+                    format!(
+                        "camera '{}' was made for aspect ratio {r:.3} but the image is {w}x{h}; its field of view is kept vertically",
+                        self.camera.name
+                    )
+                });
+                (w, h, warning)
+            }
+            (Some(w), None) => (w, side(w as f64 / a), None),
+            (None, Some(h)) => (side(h as f64 * a), h, None),
+            (None, None) => (DEFAULT_WIDTH, side(DEFAULT_WIDTH as f64 / a), None),
+        }
     }
 
     /// The scene file's stem, for naming reports and figures.

@@ -33,6 +33,9 @@ pub struct Camera {
     pub forward: Vec3,
     /// How view directions map to the film: perspective or orthographic.
     pub projection: Projection,
+    /// The width ÷ height the file's camera was made for (glTF `aspectRatio`, or `xmag/ymag`),
+    /// which the image size follows unless both sides are given; None when the file says none.
+    pub aspect_ratio: Option<f32>,
 }
 
 impl Camera {
@@ -42,6 +45,13 @@ impl Camera {
         let forward = (-m.z_axis.truncate()).normalize_or(Vec3::NEG_Z);
         let up_hint = m.y_axis.truncate();
         Self::oriented(name, position, forward, up_hint, projection)
+    }
+
+    /// The same camera made for images of `aspect` = width ÷ height (ignored unless positive and
+    /// finite).
+    pub fn with_aspect_ratio(mut self, aspect: Option<f32>) -> Self {
+        self.aspect_ratio = aspect.filter(|a| *a > 0.0 && a.is_finite());
+        self
     }
 
     /// A perspective camera at `from` looking at `at`, with +Y as the up hint.
@@ -59,7 +69,7 @@ impl Camera {
         }
         let right = right.normalize();
         let up = right.cross(forward).normalize();
-        Camera { name: name.into(), position, right, up, forward, projection }
+        Camera { name: name.into(), position, right, up, forward, projection, aspect_ratio: None }
     }
 
     /// A perspective camera that frames `bounds` from the front, slightly above.

@@ -135,11 +135,13 @@ impl NodeVisitor<'_> {
 /// A camera node's camera; unnamed cameras take the node's name, else `camera{number}`.
 fn convert_camera(cam: &gltf::Camera, node: &gltf::Node, world: Mat4, number: usize) -> Camera {
     let name = cam.name().or(node.name()).map(str::to_string).unwrap_or_else(|| format!("camera{number}"));
-    let projection = match cam.projection() {
-        gltf::camera::Projection::Perspective(p) => Projection::Perspective { yfov: p.yfov() },
-        gltf::camera::Projection::Orthographic(o) => Projection::Orthographic { ymag: o.ymag().abs() },
+    let (projection, aspect) = match cam.projection() {
+        gltf::camera::Projection::Perspective(p) => (Projection::Perspective { yfov: p.yfov() }, p.aspect_ratio()),
+        gltf::camera::Projection::Orthographic(o) => {
+            (Projection::Orthographic { ymag: o.ymag().abs() }, Some(o.xmag().abs() / o.ymag().abs()))
+        }
     };
-    Camera::from_matrix(name, world, projection)
+    Camera::from_matrix(name, world, projection).with_aspect_ratio(aspect)
 }
 
 /// Decodes each (texture, colour space) pair once.

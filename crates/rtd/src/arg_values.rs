@@ -29,10 +29,12 @@ impl ViewArgs {
         }
     }
 
-    /// Loads the scene with the chosen camera and `env`, printing its warnings.
-    pub fn load(&self, env: Option<&str>) -> anyhow::Result<SceneView> {
+    /// Loads the scene with the chosen camera and `env`, printing its warnings, and returns it
+    /// with the image size `--width`/`--height` and the camera's aspect ratio give.
+    pub fn load(&self, env: Option<&str>) -> anyhow::Result<(SceneView, (u32, u32))> {
         let loaded = SceneView::load(&self.scene, &self.camera_choice(), env)?;
-        warn_all(&self.scene, loaded.warnings.iter().map(String::as_str));
-        Ok(loaded)
+        let (w, h, size_warning) = loaded.resolution(self.width, self.height);
+        warn_all(&self.scene, loaded.warnings.iter().map(String::as_str).chain(size_warning.as_deref()));
+        Ok((loaded, (w, h)))
     }
 }

@@ -365,12 +365,13 @@ pub enum TonemapArg {
 pub struct ViewArgs {
     /// Scene file (.gltf, .glb or .obj).
     pub scene: PathBuf,
-    /// Image width in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
-    pub width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
-    pub height: u32,
+    /// Image width in pixels (default: 512, or from --height and the camera's aspect ratio).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: from the width and the camera's aspect ratio; square
+    /// when the file gives none).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
+    pub height: Option<u32>,
     /// Camera by name or index (default: the first perspective camera in the file).
     #[arg(long)]
     pub camera: Option<String>,

@@ -38,9 +38,9 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
     if let Some(r) = &args.report {
         check_report_path(r)?;
     }
-    let loaded = view.load(None)?;
+    let (loaded, (width, height)) = view.load(None)?;
     let prepared = &loaded.scene;
-    let settings = GuideSettings::new(view.width, view.height)
+    let settings = GuideSettings::new(width, height)
         .ao_rays(args.ao_rays)
         .ao_radius(args.ao_radius)
         .threads(view.threads.map(|t| t as usize));
@@ -55,8 +55,8 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
     let report = GuideReport {
         scene: view.scene.display().to_string(),
         output: args.output.display().to_string(),
-        width: view.width,
-        height: view.height,
+        width,
+        height,
         load_s: loaded.load_s,
         bvh_s: prepared.bvh_seconds,
         guide_s: pass.seconds,
@@ -64,7 +64,7 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
     };
     crate::print_line(&format!(
         "guide pass {}x{} in {:.3} s ({} triangles)",
-        view.width, view.height, pass.seconds, report.triangles
+        width, height, pass.seconds, report.triangles
     ))?;
     if let Some(path) = &args.report {
         write_json(path, &report)?;

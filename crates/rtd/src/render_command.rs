@@ -21,17 +21,17 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     }
     // Load the model first: a bad model should fail before minutes of rendering.
     let model = if args.denoise { Some(args.denoiser().load()?) } else { None };
-    let settings = RenderSettings::new(view.width, view.height)
+    let (loaded, (width, height)) = view.load(args.env.as_deref())?;
+    let settings = RenderSettings::new(width, height)
         .seed(args.seed)
         .max_depth(args.max_depth)
         .clamp(args.clamp)
         .threads(view.threads.map(|t| t as usize));
     settings.validate()?;
-    let loaded = view.load(args.env.as_deref())?;
     warn_all(&view.scene, loaded.lighting_warning());
     let mut pipeline = Pipeline::new(&loaded, settings.clone());
-    if args.aov || args.denoise {
-        pipeline = pipeline.guide(GuideSettings::new(view.width, view.height).threads(settings.threads));
+    if args.aov {
+        pipeline = pipeline.guide(GuideSettings::new(width, height).threads(settings.threads));
     }
     if let Some(m) = &model {
         pipeline = pipeline.denoise(m);
