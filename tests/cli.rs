@@ -108,6 +108,10 @@ fn bad_arguments_fail_cleanly() {
     let o = out.to_str().unwrap();
     let c = cornell_path();
     assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "0"]), "spp");
+    // Usage errors exit with 2, other errors with 1.
+    assert_eq!(rtd(&["render", &c, "-o", o, "--spp", "0"]).status.code(), Some(2));
+    assert_eq!(rtd(&["frobnicate"]).status.code(), Some(2));
+    assert_eq!(rtd(&["render", &c, "-o", o, "--camera", "nope"]).status.code(), Some(1));
     assert_fails(&rtd(&["render", &c, "-o", o, "--width", "0"]), "width");
     assert_fails(&rtd(&["render", &c, "-o", o, "--height", "100000"]), "height");
     assert_fails(&rtd(&["render", &c, "-o", o, "--width", "16384", "--height", "16384"]), "16384x16384");
@@ -303,7 +307,10 @@ fn interrupt_keeps_finished_passes() {
     let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(kill.success());
     let o = child.wait_with_output().unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    // 130 (128 + SIGINT) after the finished passes are written, with one line saying so.
+    assert_eq!(o.status.code(), Some(130), "{err}");
+    assert!(err.trim().starts_with("rtd: interrupted: ") && err.trim().lines().count() == 1, "{err}");
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["interrupted"], true);
     let spp = r["spp"].as_u64().unwrap();

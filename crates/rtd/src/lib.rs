@@ -9,6 +9,7 @@ mod arg_values;
 pub mod args;
 pub mod bench_command;
 pub mod denoise_command;
+pub mod exit;
 pub mod guide_command;
 pub mod output;
 pub mod progress;
@@ -37,7 +38,7 @@ where
         Err(e) if matches!(e.kind(), clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion) => {
             return print_text(&e.to_string());
         }
-        Err(e) => return Err(anyhow::anyhow!(first_paragraph(&e.to_string()))),
+        Err(e) => return Err(exit::UsageError(first_paragraph(&e.to_string())).into()),
     };
     match cli.command {
         args::Command::Render(a) => render_command::render(&a).map(|_| ()),

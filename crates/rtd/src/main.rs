@@ -1,8 +1,10 @@
-//! The `rtd` binary: parse arguments, run, and print any error on one line.
+//! The `rtd` binary: parse arguments, run, print any error on one line, and exit with the
+//! status [`rtd::exit`] gives (0, 1 on errors, 2 on usage errors, 130 when interrupted).
 
 fn main() {
-    if let Err(e) = rtd::run(std::env::args_os()) {
-        eprintln!("rtd: error: {}", rtd::one_line(&e));
-        std::process::exit(1);
+    let (status, line) = rtd::exit::outcome(&rtd::run(std::env::args_os()));
+    if let Some(line) = line {
+        eprintln!("{line}");
     }
+    std::process::exit(status);
 }

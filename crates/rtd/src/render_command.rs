@@ -8,6 +8,7 @@ use rtd_pipeline::{Budget, Pipeline, RenderReport};
 use rtd_render::RenderSettings;
 
 use crate::args::{RenderArgs, TonemapArg};
+use crate::exit::Interrupted;
 use crate::output::{check_output, check_report_path, warn_all};
 use crate::progress::TaskBar;
 use rtd_image::write_json;
@@ -53,6 +54,10 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     crate::print_line(&report.summary())?;
     if let Some(path) = &args.report {
         write_json(path, &report)?;
+    }
+    if report.interrupted {
+        let kept = format!("{} spp of the image are written to {}", report.spp, args.output.display());
+        return Err(Interrupted(kept).into());
     }
     Ok(report)
 }

@@ -8,6 +8,7 @@ use rtd_train::train::{EpochRecord, TrainState};
 use rtd_train::TrainOptions;
 
 use crate::args::{DatagenArgs, SplitArg, TrainArgs};
+use crate::exit::Interrupted;
 use crate::progress::TaskBar;
 
 /// Runs `rtd datagen`.
@@ -17,7 +18,8 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
         let n = refresh_guides(&args.output, &bar)?;
         bar.finish();
         if bar_cancelled(&bar) {
-            anyhow::bail!("interrupted after {n} views: rerun the same command to refresh them all");
+            let kept = format!("{n} views refreshed; rerun the same command to refresh them all");
+            return Err(Interrupted(kept).into());
         }
         eprintln!("{}: guide layers of {n} views re-rendered", args.output.display());
         return Ok(());
@@ -50,7 +52,7 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
         worst
     );
     if bar_cancelled(&bar) {
-        anyhow::bail!("interrupted: finished views are kept; rerun the same command to resume");
+        return Err(Interrupted("finished views are kept; rerun the same command to resume".into()).into());
     }
     Ok(())
 }
@@ -77,7 +79,8 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
     bar.finish();
     rtd_train::plot::write_training_curves(&args.output.join("curves.png"), &state)?;
     if state.step < options.steps {
-        anyhow::bail!("interrupted at step {}: the checkpoint is kept; rerun with --resume to continue", state.step);
+        let kept = format!("at step {}: the checkpoint is kept; rerun with --resume to continue", state.step);
+        return Err(Interrupted(kept).into());
     }
     if let Some(last) = state.history.last() {
         eprintln!("{}", summary(state.step, last, &args.output));
