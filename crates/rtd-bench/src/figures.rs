@@ -76,12 +76,17 @@ pub fn side_by_side(path: &Path, images: &EtrtImages) -> Result<(), BenchError> 
     Ok(())
 }
 
+/// A report's scene file by its stem, for legends.
+pub fn scene_name(scene: &str) -> String {
+    Path::new(scene).file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string()
+}
+
 /// relMSE against time for plain path tracing, one line per report, with each denoised result
 /// as a marker.
 pub fn error_plot(path: &Path, reports: &[EtrtReport]) -> Result<(), BenchError> {
     let mut series = vec![];
     for r in reports {
-        let name = Path::new(&r.scene).file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
+        let name = scene_name(&r.scene);
         series.push(Series::line(format!("{name}: plain"), r.curve.iter().map(|c| (c.0, c.2.log10())).collect()));
         let d = &r.images.denoised;
         series.push(Series::markers(

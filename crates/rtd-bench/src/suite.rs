@@ -52,13 +52,14 @@ pub fn spp_sweep(
     let mut out = vec![];
     for spp in SPP_LADDER {
         let run = pipeline.run(Budget::Samples(spp), &Quiet)?;
-        let denoised = run.image();
+        let beauty = run.film.beauty();
+        let denoised = run.denoised.as_ref().unwrap_or(&beauty);
         out.push(SweepPoint {
             spp,
             render_s: run.timings.render_s,
             pipeline_s: run.timings.pipeline_s(),
-            raw: metrics(&run.film.beauty(), reference, METRIC_BORDER),
-            denoised: metrics(&denoised, reference, METRIC_BORDER),
+            raw: metrics(&beauty, reference, METRIC_BORDER),
+            denoised: metrics(denoised, reference, METRIC_BORDER),
         });
     }
     Ok(out)
@@ -99,7 +100,7 @@ fn write_summary(dir: &Path, results: &[SceneResult]) -> Result<(), BenchError> 
     crate::figures::error_plot(&dir.join("error-vs-time.png"), &reports)?;
     let mut series = vec![];
     for r in results {
-        let name = Path::new(&r.etrt.scene).file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
+        let name = crate::figures::scene_name(&r.etrt.scene);
         series.push(Series::line(
             format!("{name}: raw"),
             r.sweep.iter().map(|p| (p.render_s, p.raw.relmse.log10())).collect(),

@@ -50,10 +50,27 @@ pub struct DenoiseOutcome {
     pub nonfinite_input_values: usize,
 }
 
+/// The refusal of inputs with neither a guide nor an albedo + normal pair.
+const NO_GUIDE: PipelineError =
+    PipelineError::Sources("a guide (material colour × AO) or an albedo with a normal is needed");
+
 impl DenoiseSources {
+    /// Checks, before any file is read, that the inputs make a usable set: a guide, or an albedo
+    /// with a normal, or both.
+    pub fn check(&self) -> Result<(), PipelineError> {
+        match (&self.guide, &self.albedo, &self.normal) {
+            (_, Some(_), None) | (_, None, Some(_)) => {
+                Err(PipelineError::Sources("albedo and normal must be given together"))
+            }
+            (None, None, None) => Err(NO_GUIDE),
+            _ => Ok(()),
+        }
+    }
+
     /// Reads the inputs, denoises them with `denoiser` and writes the result to `output` (EXR:
     /// the denoised `R,G,B`; PNG/JPEG: exposed by `exposure` stops and clamped).
     pub fn run(&self, denoiser: &Denoiser, output: &Path, exposure: f32) -> Result<DenoiseOutcome, PipelineError> {
+        self.check()?;
         let format = ImageFormat::from_path(output)?;
         let color = read_layer(&self.color, Layer::Beauty)?;
         let mut inputs = vec!["color".to_string()];
@@ -65,8 +82,7 @@ impl DenoiseSources {
                 inputs.extend(["albedo".to_string(), "normal".to_string()]);
                 Some((ai, ni))
             }
-            (None, None) => None,
-            _ => return Err(PipelineError::Sources("albedo and normal must be given together")),
+            _ => None,
         };
         let guide = match (&self.guide, &albedo_normal) {
             (Some(g), _) => {
@@ -77,11 +93,7 @@ impl DenoiseSources {
             }
             // Without a guide image, the albedo stands in for material colour × AO.
             (None, Some((a, _))) => a.clone(),
-            (None, None) => {
-                return Err(PipelineError::Sources(
-                    "a guide (material colour × AO) or an albedo with a normal is needed",
-                ))
-            }
+            (None, None) => return Err(NO_GUIDE),
         };
         let mut input = DenoiseInput::new(&color, &guide);
         if let Some((a, n)) = &albedo_normal {
@@ -192,4 +204,25 @@ fn finite(img: HdrImage) -> HdrImage {
         .map(|p| Vec3::from_array(p.to_array().map(|v| if v.is_finite() { v } else { 0.0 })))
         .collect();
     HdrImage::from_pixels(img.width, img.height, px)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unusable_set_of_inputs_is_refused_before_any_file_is_read() {
+        let with = |guide: bool, albedo: bool, normal: bool| DenoiseSources {
+            color: "missing.exr".into(),
+            guide: guide.then(|| "g.exr".into()),
+            albedo: albedo.then(|| "a.exr".into()),
+            normal: normal.then(|| "n.exr".into()),
+        };
+        assert!(with(true, false, false).check().is_ok());
+        assert!(with(false, true, true).check().is_ok());
+        assert!(with(true, true, true).check().is_ok());
+        for (g, a, n) in [(false, false, false), (false, true, false), (true, false, true)] {
+            assert!(matches!(with(g, a, n).check(), Err(PipelineError::Sources(_))), "{g} {a} {n}");
+        }
+    }
 }

@@ -13,16 +13,17 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseOutcome> {
     if let Some(r) = &args.report {
         check_report_path(r)?;
     }
-    if args.guide.is_none() && args.albedo.is_none() {
-        anyhow::bail!("rtd denoise needs --guide (material colour × AO) or --albedo with --normal");
-    }
-    let model = args.denoiser.load()?;
     let sources = DenoiseSources {
         color: args.color.clone(),
         guide: args.guide.clone(),
         albedo: args.albedo.clone(),
         normal: args.normal.clone(),
     };
+    // Refuse an unusable set of inputs before loading the model, in the command line's terms.
+    sources
+        .check()
+        .map_err(|_| anyhow::anyhow!("rtd denoise needs --guide (material colour × AO) or --albedo with --normal"))?;
+    let model = args.denoiser.load()?;
     let outcome = sources.run(&model, &args.output, args.exposure)?;
     crate::print_line(&outcome.summary())?;
     if let Some(path) = &args.report {

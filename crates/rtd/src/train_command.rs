@@ -10,6 +10,7 @@ use rtd_train::TrainOptions;
 use crate::args::{DatagenArgs, SplitArg, TrainArgs};
 use crate::exit::Interrupted;
 use crate::progress::TaskBar;
+use rtd_image::Progress;
 
 /// Runs `rtd datagen`.
 pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
@@ -17,7 +18,7 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
         let bar = TaskBar::new(args.quiet);
         let n = refresh_guides(&args.output, &bar)?;
         bar.finish();
-        if bar_cancelled(&bar) {
+        if bar.cancelled() {
             let kept = format!("{n} views refreshed; rerun the same command to refresh them all");
             return Err(Interrupted(kept).into());
         }
@@ -51,14 +52,10 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
         mean,
         worst
     );
-    if bar_cancelled(&bar) {
+    if bar.cancelled() {
         return Err(Interrupted("finished views are kept; rerun the same command to resume".into()).into());
     }
     Ok(())
-}
-
-fn bar_cancelled(bar: &TaskBar) -> bool {
-    rtd_image::Progress::cancelled(bar)
 }
 
 /// Runs `rtd train` and returns the final state: the options from `args` (`--quick` first makes
