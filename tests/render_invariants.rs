@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use rtd::render::{PathTracer, RenderScene, RenderSettings};
+use rtd::render::{Film, PathTracer, RenderScene, RenderSettings};
 use rtd::scene::{Camera, Environment, Light, Material, Scene};
 
 fn cornell_camera(scene: &Scene) -> Camera {
@@ -36,6 +36,41 @@ fn eight_plus_eight_equals_sixteen() {
     tracer.render(&mut twice, 8).unwrap();
     assert_eq!(twice.spp, 16);
     assert_eq!(once.layers(), twice.layers(), "continuation differs from a single render");
+}
+
+#[test]
+fn sample_ranges_merge_to_the_whole_render() {
+    let scene = cornell();
+    let cam = cornell_camera(&scene);
+    let prepared = RenderScene::new(scene);
+    let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(24, 20).seed(5)).unwrap();
+    let mut whole = tracer.film();
+    tracer.render(&mut whole, 7).unwrap();
+    // Three ranges, rendered as separate machines would, merged in order: 0..2, 2..3, 3..7.
+    let ranges = [(0, 2), (2, 1), (3, 4)];
+    let parts: Vec<Film> = ranges
+        .iter()
+        .map(|&(first, n)| {
+            let mut f = Film::starting_at(24, 20, first);
+            tracer.render(&mut f, n).unwrap();
+            f
+        })
+        .collect();
+    let mut merged = parts[0].clone();
+    for p in &parts[1..] {
+        merged.merge(p).unwrap();
+    }
+    assert_eq!(merged, whole, "split render differs from the one-machine film");
+    assert_eq!(merged.layers(), whole.layers());
+    // Grouped the other way: 0..2 then (2..3 + 3..7).
+    let mut tail = parts[1].clone();
+    tail.merge(&parts[2]).unwrap();
+    let mut other = parts[0].clone();
+    other.merge(&tail).unwrap();
+    assert_eq!(other, whole, "merge grouping changed the film");
+    // A gap or an overlap is refused.
+    assert!(parts[0].clone().merge(&parts[2]).is_err());
+    assert!(whole.clone().merge(&parts[1]).is_err());
 }
 
 /// Root-mean-square difference of two images.

@@ -1,24 +1,48 @@
 //! The film: per-pixel running sums of the beauty and the first-hit AOVs.
 //!
-//! Sums are accumulated per pixel in sample order, so N samples followed by M more give the
-//! same bytes as N+M samples in one go.
+//! Every sample is snapped to a multiple of [`SAMPLE_QUANTUM`] before it is added to an `f64`
+//! sum. Sums of such values are exact while they stay below 2^29, so they do not depend on the
+//! order of addition: N samples followed by M more give the same bytes as N+M in one go, and a
+//! render split into sample ranges on several machines and merged ([`Film::merge`]) gives the same
+//! bytes as the whole render on one.
 
 use glam::{DVec3, Vec3};
 use rtd_image::{HdrImage, Layer, Layers};
+use serde::{Deserialize, Serialize};
 
-/// Accumulated samples for one image.
-#[derive(Debug, Clone)]
+/// The grid samples are snapped to before accumulation: 2^-24, about 6e-8, far below what a
+/// 32-bit float output shows of any visible pixel value.
+pub const SAMPLE_QUANTUM: f64 = 1.0 / (1u64 << 24) as f64;
+
+/// A sample value on the [`SAMPLE_QUANTUM`] grid (round to nearest), so that sums are exact.
+#[inline]
+pub(crate) fn quantize(v: f64) -> f64 {
+    (v / SAMPLE_QUANTUM).round() * SAMPLE_QUANTUM
+}
+
+/// [`quantize`] per component.
+#[inline]
+pub(crate) fn quantize3(v: Vec3) -> DVec3 {
+    let d = v.as_dvec3();
+    DVec3::new(quantize(d.x), quantize(d.y), quantize(d.z))
+}
+
+/// Accumulated samples for one image: samples `first_sample..spp` of every pixel.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Film {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// Samples taken per pixel so far.
+    /// One past the index of the last sample taken per pixel (the samples so far, for a film
+    /// that started at sample 0).
     pub spp: u32,
+    /// The first sample index this film holds: 0 unless it is one range of a split render.
+    pub first_sample: u32,
     pub(crate) beauty: Vec<DVec3>,
-    pub(crate) albedo: Vec<Vec3>,
-    pub(crate) normal: Vec<Vec3>,
-    pub(crate) depth: Vec<f32>,
+    pub(crate) albedo: Vec<DVec3>,
+    pub(crate) normal: Vec<DVec3>,
+    pub(crate) depth: Vec<f64>,
     /// Samples whose radiance was NaN or infinite; they were counted as black.
     pub nonfinite_samples: u64,
 }
@@ -26,17 +50,56 @@ pub struct Film {
 impl Film {
     /// An empty film.
     pub fn new(width: u32, height: u32) -> Self {
+        Film::starting_at(width, height, 0)
+    }
+
+    /// An empty film whose next sample index is `first_sample`: one range of a render split
+    /// by sample index, to be [`Film::merge`]d with the ranges before it.
+    pub fn starting_at(width: u32, height: u32, first_sample: u32) -> Self {
         let n = width as usize * height as usize;
         Film {
             width,
             height,
-            spp: 0,
+            spp: first_sample,
+            first_sample,
             beauty: vec![DVec3::ZERO; n],
-            albedo: vec![Vec3::ZERO; n],
-            normal: vec![Vec3::ZERO; n],
+            albedo: vec![DVec3::ZERO; n],
+            normal: vec![DVec3::ZERO; n],
             depth: vec![0.0; n],
             nonfinite_samples: 0,
         }
+    }
+
+    /// Samples per pixel this film holds.
+    pub fn samples(&self) -> u32 {
+        self.spp - self.first_sample
+    }
+
+    /// True if the film's buffers have its size and its sample range is in order: what a film
+    /// read back from storage must satisfy before it is used.
+    pub fn is_consistent(&self) -> bool {
+        let n = self.width as usize * self.height as usize;
+        self.first_sample <= self.spp
+            && [self.beauty.len(), self.albedo.len(), self.normal.len(), self.depth.len()].iter().all(|&l| l == n)
+    }
+
+    /// Appends `next`, the range that starts where this film ends. The sums are exact, so
+    /// merging the ranges of a split render in any grouping gives the one-machine film's bytes.
+    pub fn merge(&mut self, next: &Film) -> Result<(), FilmMergeError> {
+        if (next.width, next.height) != (self.width, self.height) {
+            return Err(FilmMergeError::Size { have: (self.width, self.height), next: (next.width, next.height) });
+        }
+        if next.first_sample != self.spp || !next.is_consistent() {
+            return Err(FilmMergeError::Range { have: self.spp, next: next.first_sample });
+        }
+        let add3 = |a: &mut [DVec3], b: &[DVec3]| a.iter_mut().zip(b).for_each(|(a, b)| *a += *b);
+        add3(&mut self.beauty, &next.beauty);
+        add3(&mut self.albedo, &next.albedo);
+        add3(&mut self.normal, &next.normal);
+        self.depth.iter_mut().zip(&next.depth).for_each(|(a, b)| *a += *b);
+        self.spp = next.spp;
+        self.nonfinite_samples += next.nonfinite_samples;
+        Ok(())
     }
 
     fn mean_image(&self, f: impl Fn(usize) -> Vec3) -> HdrImage {
@@ -46,26 +109,31 @@ impl Film {
 
     /// The beauty image (mean radiance per pixel).
     pub fn beauty(&self) -> HdrImage {
-        let inv = 1.0 / self.spp.max(1) as f64;
+        let inv = self.inverse_samples();
         self.mean_image(|i| (self.beauty[i] * inv).as_vec3())
     }
 
     /// Mean first-hit albedo.
     pub fn albedo(&self) -> HdrImage {
-        let inv = 1.0 / self.spp.max(1) as f32;
-        self.mean_image(|i| self.albedo[i] * inv)
+        let inv = self.inverse_samples();
+        self.mean_image(|i| (self.albedo[i] * inv).as_vec3())
     }
 
     /// Mean first-hit world-space shading normal (not renormalised at edges).
     pub fn normal(&self) -> HdrImage {
-        let inv = 1.0 / self.spp.max(1) as f32;
-        self.mean_image(|i| self.normal[i] * inv)
+        let inv = self.inverse_samples();
+        self.mean_image(|i| (self.normal[i] * inv).as_vec3())
     }
 
     /// Mean camera-space distance to the first hit (0 where rays escaped).
     pub fn depth(&self) -> Vec<f32> {
-        let inv = 1.0 / self.spp.max(1) as f32;
-        self.depth.iter().map(|d| d * inv).collect()
+        let inv = self.inverse_samples();
+        self.depth.iter().map(|d| (d * inv) as f32).collect()
+    }
+
+    /// 1 / samples held (1 for an empty film, whose sums are all zero).
+    fn inverse_samples(&self) -> f64 {
+        1.0 / self.samples().max(1) as f64
     }
 
     /// The EXR channels: `R,G,B`, `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`.
@@ -76,5 +144,44 @@ impl Film {
         l.put_image(Layer::Normal, &self.normal());
         l.put_plane(Layer::Depth, self.depth());
         l
+    }
+}
+
+/// Why two films cannot be merged.
+#[derive(Debug, thiserror::Error)]
+pub enum FilmMergeError {
+    /// The films are of different sizes.
+    #[error("film sizes differ: {}x{} and {}x{}", have.0, have.1, next.0, next.1)]
+    Size {
+        /// This film's size.
+        have: (u32, u32),
+        /// The other film's size.
+        next: (u32, u32),
+    },
+    /// The next film does not start at the sample where this one ends (or is malformed).
+    #[error("the next sample range starts at sample {next}, not at {have} where this film ends")]
+    Range {
+        /// Where this film ends.
+        have: u32,
+        /// Where the next one starts.
+        next: u32,
+    },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Values far apart in magnitude, whose plain f64 sums depend on the grouping.
+    const WIDE: [f64; 4] = [3.0e7, 1.0e-7 + 0.3, 0.1, -3.0e7 + 0.7];
+
+    #[test]
+    fn quantised_sums_do_not_depend_on_grouping() {
+        let plain = [WIDE[0] + (WIDE[1] + WIDE[2]), (WIDE[0] + WIDE[1]) + WIDE[2]];
+        assert_ne!(plain[0], plain[1], "the example must show plain sums are not associative");
+        let q = WIDE.map(quantize);
+        assert_eq!(q[0] + (q[1] + q[2]) + q[3], ((q[0] + q[1]) + q[2]) + q[3]);
+        assert_eq!((q[0] + q[1]) + (q[2] + q[3]), ((q[0] + q[1]) + q[2]) + q[3]);
+        assert!((quantize(0.3) - 0.3).abs() <= SAMPLE_QUANTUM / 2.0);
     }
 }

@@ -20,7 +20,7 @@ pub mod surface;
 
 pub use bsdf::{Bsdf, BsdfParams, BsdfSample};
 pub use bvh::{SceneBvh, MAX_BUNDLE, NO_TRIANGLE};
-pub use film::Film;
+pub use film::{Film, FilmMergeError, SAMPLE_QUANTUM};
 pub use lights::LightSet;
 pub use render::{PathTracer, RenderScene, RenderSettings, RenderStats, Workers, MAX_DEPTH, MAX_SPP, SPP_LADDER};
 pub use sampler::Sampler;

@@ -9,7 +9,7 @@ use rtd_image::{Progress, Quiet, MAX_DIMENSION, MAX_PIXELS};
 use rtd_scene::{Camera, Scene};
 
 use crate::bvh::SceneBvh;
-use crate::film::Film;
+use crate::film::{quantize, quantize3, Film};
 use crate::integrator::Integrator;
 use crate::lights::LightSet;
 use crate::sampler::Sampler;
@@ -303,11 +303,12 @@ impl<'a> PathTracer<'a> {
                             l *= c / m;
                         }
                     }
-                    beauty[x] += l.as_dvec3();
+                    // Quantised sums are exact, hence independent of how samples are grouped.
+                    beauty[x] += quantize3(l);
                     if r.aov.albedo.is_finite() && r.aov.normal.is_finite() && r.aov.depth.is_finite() {
-                        albedo[x] += r.aov.albedo;
-                        normal[x] += r.aov.normal;
-                        depth[x] += r.aov.depth;
+                        albedo[x] += quantize3(r.aov.albedo);
+                        normal[x] += quantize3(r.aov.normal);
+                        depth[x] += quantize(r.aov.depth as f64);
                     }
                 }
                 rays.fetch_add(row_rays, Ordering::Relaxed);
