@@ -21,6 +21,7 @@ mod layer;
 mod ldr;
 pub mod metrics;
 mod progress;
+mod sniff;
 
 pub use atomic::{parent_dir, write_atomic, write_bytes_atomic, write_json};
 pub use error::ImageError;
@@ -30,6 +31,7 @@ pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
 pub use progress::{Progress, Quiet};
+pub use sniff::{check_image_size, read_image_header, ImageHeader};
 
 /// Largest width or height rtd accepts for any image it reads, renders, denoises or writes.
 /// Every size check in rtd uses this one constant.

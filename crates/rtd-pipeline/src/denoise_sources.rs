@@ -67,11 +67,18 @@ impl DenoiseSources {
         }
     }
 
-    /// Reads the inputs, denoises them with `denoiser` and writes the result to `output` (EXR:
-    /// the denoised `R,G,B`; PNG/JPEG: exposed by `exposure` stops and clamped).
+    /// Reads the inputs, denoises them with `denoiser` and writes the result to `output`
+    /// ([`Denoised::write`]).
     pub fn run(&self, denoiser: &Denoiser, output: &Path, exposure: f32) -> Result<DenoiseOutcome, PipelineError> {
+        ImageFormat::from_path(output)?;
+        let denoised = self.denoise(denoiser)?;
+        denoised.write(output, exposure)?;
+        Ok(denoised.outcome(&self.color, output))
+    }
+
+    /// Reads the inputs and denoises them with `denoiser`.
+    pub fn denoise(&self, denoiser: &Denoiser) -> Result<Denoised, PipelineError> {
         self.check()?;
-        let format = ImageFormat::from_path(output)?;
         let color = read_layer(&self.color, Layer::Beauty)?;
         let mut inputs = vec!["color".to_string()];
         let albedo_normal = match (&self.albedo, &self.normal) {
@@ -100,27 +107,84 @@ impl DenoiseSources {
             input = input.albedo_normal(a, n);
         }
         let t = Instant::now();
-        let out = finite(denoiser.denoise(&input)?);
+        let image = finite(denoiser.denoise(&input)?);
         let denoise_s = t.elapsed().as_secs_f64();
-        match format {
-            ImageFormat::Exr => {
-                let mut layers = Layers::new(out.width, out.height);
-                layers.put_image(Layer::Beauty, &out);
-                rtd_image::write_exr(output, &layers)?
-            }
-            ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(output, &out, exposure, Tonemap::Clamp)?,
-        }
-        Ok(DenoiseOutcome {
-            color: self.color.display().to_string(),
-            output: output.display().to_string(),
-            width: out.width,
-            height: out.height,
-            denoise_s,
-            denoise_model: denoiser.name().to_string(),
-            denoise_passes: denoiser.ensemble_passes(),
-            inputs,
+        let guide = self.guide.as_ref().map(|_| guide);
+        Ok(Denoised {
             nonfinite_input_values: count_nonfinite(&color),
+            image,
+            color,
+            guide,
+            albedo_normal,
+            inputs,
+            denoise_s,
+            model: denoiser.name().to_string(),
+            passes: denoiser.ensemble_passes(),
         })
+    }
+}
+
+/// A denoised image with the inputs it was made from.
+pub struct Denoised {
+    /// The denoised image.
+    pub image: HdrImage,
+    /// The noisy colour as read.
+    pub color: HdrImage,
+    /// The guide image, when one was given.
+    pub guide: Option<HdrImage>,
+    /// Albedo and normal, when given.
+    pub albedo_normal: Option<(HdrImage, HdrImage)>,
+    /// Which inputs were given.
+    pub inputs: Vec<String>,
+    /// Seconds in the denoiser.
+    pub denoise_s: f64,
+    /// The model's name.
+    pub model: String,
+    /// Self-ensemble passes.
+    pub passes: usize,
+    /// Colour input values that were NaN or infinite.
+    pub nonfinite_input_values: usize,
+}
+
+impl Denoised {
+    /// Writes the result to `path`, the format chosen by its extension. An EXR holds the
+    /// denoised `R,G,B` and the inputs as layers (`noisy.*`, and `guide.*`, `albedo.*`,
+    /// `normal.*` where given); a PNG or JPEG the denoised image, exposed by `exposure` stops
+    /// and clamped.
+    pub fn write(&self, path: &Path, exposure: f32) -> Result<(), PipelineError> {
+        match ImageFormat::from_path(path)? {
+            ImageFormat::Exr => {
+                let mut layers = Layers::new(self.image.width, self.image.height);
+                layers.put_image(Layer::Beauty, &self.image);
+                layers.put_image(Layer::Noisy, &self.color);
+                if let Some(g) = &self.guide {
+                    layers.put_image(Layer::Guide, g);
+                }
+                if let Some((a, n)) = &self.albedo_normal {
+                    layers.put_image(Layer::Albedo, a);
+                    layers.put_image(Layer::Normal, n);
+                }
+                rtd_image::write_exr(path, &layers)?
+            }
+            ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(path, &self.image, exposure, Tonemap::Clamp)?,
+        }
+        Ok(())
+    }
+
+    /// What `rtd denoise --report` writes for this result, read from `color` and written to
+    /// `output`.
+    pub fn outcome(&self, color: &Path, output: &Path) -> DenoiseOutcome {
+        DenoiseOutcome {
+            color: color.display().to_string(),
+            output: output.display().to_string(),
+            width: self.image.width,
+            height: self.image.height,
+            denoise_s: self.denoise_s,
+            denoise_model: self.model.clone(),
+            denoise_passes: self.passes,
+            inputs: self.inputs.clone(),
+            nonfinite_input_values: self.nonfinite_input_values,
+        }
     }
 }
 

@@ -19,7 +19,7 @@ mod pipeline;
 mod report;
 mod view;
 
-pub use denoise_sources::{DenoiseOutcome, DenoiseSources};
+pub use denoise_sources::{DenoiseOutcome, DenoiseSources, Denoised};
 pub use error::PipelineError;
 pub use pipeline::{denoise_input, Budget, Pipeline, PipelineRun, StageTimings};
 pub use report::RenderReport;

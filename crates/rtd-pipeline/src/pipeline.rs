@@ -146,6 +146,49 @@ impl<'a> Pipeline<'a> {
             Budget::Samples(spp) => stats.spp < spp,
             Budget::Time(_) => progress.cancelled(),
         };
+        self.finish_film(film, stats, interrupted, progress)
+    }
+
+    /// Renders samples `first..first + count` of every pixel into a film of their own: one
+    /// range of a render split over machines, to be merged in order ([`Film::merge`]) and
+    /// finished with [`Pipeline::finish`]. Cancelling stops it between passes (check
+    /// [`Film::samples`]).
+    pub fn render_range(&self, first: u32, count: u32, progress: &dyn Progress) -> Result<Film, PipelineError> {
+        self.validate()?;
+        let tracer = self.tracer()?;
+        let mut film = Film::starting_at(self.render.width, self.render.height, first);
+        progress.start(count as u64 * self.render.height as u64, "render");
+        tracer.render_observed(&mut film, count, progress)?;
+        Ok(film)
+    }
+
+    /// Runs the guide pass and the denoiser, as configured, on `film`: a whole render made
+    /// elsewhere, such as merged sample ranges. Gives what [`Pipeline::run`] gives for the same
+    /// samples (its render counters hold only the film's spp and non-finite samples).
+    pub fn finish(&self, film: Film, progress: &dyn Progress) -> Result<PipelineRun, PipelineError> {
+        self.validate()?;
+        if film.first_sample != 0 || film.samples() == 0 {
+            return Err(PipelineError::NothingRendered);
+        }
+        if (film.width, film.height) != (self.render.width, self.render.height) {
+            return Err(rtd_render::RenderError::FilmSize {
+                film: (film.width, film.height),
+                settings: (self.render.width, self.render.height),
+            }
+            .into());
+        }
+        let stats = RenderStats { spp: film.spp, nonfinite_samples: film.nonfinite_samples, ..RenderStats::default() };
+        self.finish_film(film, stats, false, progress)
+    }
+
+    /// The stages after the render: guide pass and denoiser.
+    fn finish_film(
+        &self,
+        film: Film,
+        stats: RenderStats,
+        interrupted: bool,
+        progress: &dyn Progress,
+    ) -> Result<PipelineRun, PipelineError> {
         let mut timings = StageTimings {
             load_s: self.view.load_s,
             bvh_s: self.view.scene.bvh_seconds,

@@ -40,6 +40,10 @@ pub enum Command {
     Bench(BenchArgs),
     /// Train the denoiser on a `rtd datagen` dataset (resumable; --quick for a smoke run).
     Train(TrainArgs),
+    /// The web service: upload page, JSON API and job queue (SQLite, or PostgreSQL for many machines).
+    Serve(crate::service_args::ServeArgs),
+    /// A render node: takes jobs from the service's database until stopped.
+    Worker(crate::service_args::WorkerArgs),
 }
 
 /// `rtd train` options.

@@ -14,6 +14,8 @@ pub mod guide_command;
 pub mod output;
 pub mod progress;
 pub mod render_command;
+pub mod service_args;
+pub mod service_command;
 pub mod train_command;
 
 pub use rtd_bench as bench;
@@ -23,6 +25,7 @@ pub use rtd_image as image;
 pub use rtd_pipeline as pipeline;
 pub use rtd_render as render;
 pub use rtd_scene as scene;
+pub use rtd_service as service;
 pub use rtd_train as train;
 
 use clap::Parser;
@@ -47,6 +50,8 @@ where
         args::Command::Denoise(a) => denoise_command::denoise(&a).map(|_| ()),
         args::Command::Bench(a) => bench_command::bench(&a),
         args::Command::Train(a) => train_command::train(&a).map(|_| ()),
+        args::Command::Serve(a) => service_command::serve(&a),
+        args::Command::Worker(a) => service_command::worker(&a),
     }
 }
 

@@ -1,0 +1,203 @@
+//! A render node: claims tasks from the queue, works on them on a blocking thread while a
+//! timer renews the lease and publishes progress, and stores the result. Workers know nothing
+//! of each other; any number may run against one database.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use rtd_denoise::Denoiser;
+use tokio::sync::watch;
+use tracing::{info, warn};
+
+use crate::config::MAX_ATTEMPTS;
+use crate::execute::{execute, TaskInputs, TaskProgress};
+use crate::queue::{Claim, JobQueue, TaskKind, TaskOutput};
+use crate::{Database, JobKey, ServiceConfig, ServiceError};
+
+/// How often a worker records that it is alive while idle.
+const HEARTBEAT: Duration = Duration::from_secs(5);
+/// How long storing a result is retried while the database is unreachable.
+const STORE_RETRY: Duration = Duration::from_secs(60);
+
+/// One worker: a loop that takes one task at a time.
+pub struct Worker {
+    queue: JobQueue,
+    id: String,
+    host: String,
+    denoiser: Arc<Denoiser>,
+    config: ServiceConfig,
+}
+
+/// How a claimed task ended.
+#[derive(Debug, PartialEq, Eq)]
+enum Outcome {
+    Completed,
+    Failed,
+    /// The lease was lost: another worker has the task now.
+    Lost,
+    /// Given back to the queue on shutdown.
+    Released,
+}
+
+impl Worker {
+    /// A worker on `db` with `denoiser`, named after this host and process with a random tag.
+    pub fn new(db: Database, denoiser: Arc<Denoiser>, config: ServiceConfig) -> Result<Self, ServiceError> {
+        let host = std::env::var("HOSTNAME")
+            .ok()
+            .or_else(|| std::fs::read_to_string("/etc/hostname").ok().map(|h| h.trim().to_string()))
+            .filter(|h| !h.is_empty())
+            .unwrap_or_else(|| "localhost".into());
+        let tag = JobKey::generate().map_err(ServiceError::Random)?;
+        let id = format!("{host}-{}-{}", std::process::id(), &tag.as_str()[..8]);
+        Ok(Worker { queue: JobQueue::new(db), id, host, denoiser, config })
+    }
+
+    /// The worker's name, as stored with the tasks it completes.
+    pub fn id(&self) -> &str {
+        &self.id
+    }
+
+    /// Works until `shutdown` turns true: a task in flight is then stopped between passes and
+    /// given back to the queue for another worker. Database outages are waited out.
+    pub async fn run(self, mut shutdown: watch::Receiver<bool>) {
+        info!(worker = %self.id, "worker started");
+        let mut last_beat = None::<tokio::time::Instant>;
+        while !*shutdown.borrow() {
+            if last_beat.is_none_or(|t| t.elapsed() >= HEARTBEAT) {
+                match self.queue.heartbeat(&self.id, &self.host).await {
+                    Ok(()) => last_beat = Some(tokio::time::Instant::now()),
+                    Err(e) => warn!(worker = %self.id, error = %e, "heartbeat failed"),
+                }
+            }
+            let claim = match self.queue.claim(&self.id, self.lease_ms()).await {
+                Ok(c) => c,
+                Err(e) => {
+                    warn!(worker = %self.id, error = %e, "cannot reach the queue; retrying");
+                    None
+                }
+            };
+            match claim {
+                Some(claim) => {
+                    let outcome = self.work_on(&claim, &mut shutdown).await;
+                    info!(worker = %self.id, task = claim.id, job = %claim.job, ?outcome, "task ended");
+                }
+                None => {
+                    tokio::select! {
+                        _ = tokio::time::sleep(self.config.poll) => {}
+                        _ = shutdown.changed() => {}
+                    }
+                }
+            }
+        }
+        info!(worker = %self.id, "worker stopped");
+    }
+
+    fn lease_ms(&self) -> i64 {
+        self.config.lease.as_millis() as i64
+    }
+
+    /// Works on one claimed task to its end.
+    async fn work_on(&self, claim: &Claim, shutdown: &mut watch::Receiver<bool>) -> Outcome {
+        if claim.attempt > MAX_ATTEMPTS {
+            let why =
+                format!("The job was given up after {MAX_ATTEMPTS} attempts, each ended by a worker that stopped");
+            return self.store_failure(claim, &why).await;
+        }
+        let inputs = match self.fetch(claim).await {
+            Ok(i) => i,
+            Err(e) => {
+                // The database went away between claim and fetch: the lease will run out.
+                warn!(worker = %self.id, error = %e, "cannot read the task's inputs");
+                return Outcome::Lost;
+            }
+        };
+        let progress = Arc::new(TaskProgress::default());
+        let work = {
+            let (claim, progress, denoiser, threads) =
+                (claim.clone(), progress.clone(), self.denoiser.clone(), self.config.threads);
+            tokio::task::spawn_blocking(move || execute(&claim, &inputs, &denoiser, threads, &progress))
+        };
+        tokio::pin!(work);
+        let mut renew = tokio::time::interval(self.config.lease / 4);
+        renew.tick().await;
+        let (mut lost, mut stopping) = (false, false);
+        let result = loop {
+            tokio::select! {
+                r = &mut work => break r,
+                _ = renew.tick() => match self.queue.renew(claim, self.lease_ms(), progress.fraction()).await {
+                    Ok(true) => {}
+                    Ok(false) => { lost = true; progress.stop(); }
+                    Err(e) => warn!(worker = %self.id, error = %e, "cannot renew the lease"),
+                },
+                _ = shutdown.changed(), if !stopping => { stopping = true; progress.stop(); }
+            }
+        };
+        if lost {
+            return Outcome::Lost;
+        }
+        match result {
+            Err(join) => self.store_failure(claim, &format!("The worker failed on this job ({join})")).await,
+            Ok(_) if stopping && claim.kind == TaskKind::RenderRange => self.release(claim).await,
+            Ok(Ok(output)) => self.store(claim, output).await,
+            Ok(Err(_)) if stopping => self.release(claim).await,
+            Ok(Err(e)) => self.store_failure(claim, &sentence(&e)).await,
+        }
+    }
+
+    async fn fetch(&self, claim: &Claim) -> Result<TaskInputs, ServiceError> {
+        let files = self.queue.inputs(&claim.job).await?;
+        let params = serde_json::from_str(&self.queue.params(&claim.job).await?)
+            .map_err(|e| ServiceError::Corrupt(format!("job parameters: {e}")))?;
+        let films = match claim.kind {
+            TaskKind::RenderFinish => self.queue.range_films(&claim.job).await?,
+            _ => Vec::new(),
+        };
+        Ok(TaskInputs { files, params, films })
+    }
+
+    /// Stores the output, retrying while the database is unreachable.
+    async fn store(&self, claim: &Claim, output: TaskOutput) -> Outcome {
+        let deadline = tokio::time::Instant::now() + STORE_RETRY;
+        loop {
+            match self.queue.complete(claim, output.clone()).await {
+                Ok(true) => return Outcome::Completed,
+                Ok(false) => return Outcome::Lost,
+                Err(e) if tokio::time::Instant::now() < deadline => {
+                    warn!(worker = %self.id, error = %e, "cannot store the result; retrying");
+                    tokio::time::sleep(Duration::from_secs(1)).await;
+                }
+                Err(e) => {
+                    warn!(worker = %self.id, error = %e, "giving up storing the result; the lease will run out");
+                    return Outcome::Lost;
+                }
+            }
+        }
+    }
+
+    async fn store_failure(&self, claim: &Claim, why: &str) -> Outcome {
+        match self.queue.fail(claim, why).await {
+            Ok(true) => Outcome::Failed,
+            Ok(false) => Outcome::Lost,
+            Err(e) => {
+                warn!(worker = %self.id, error = %e, "cannot record the failure; the lease will run out");
+                Outcome::Lost
+            }
+        }
+    }
+
+    async fn release(&self, claim: &Claim) -> Outcome {
+        if let Err(e) = self.queue.release(claim).await {
+            warn!(worker = %self.id, error = %e, "cannot give the task back; its lease will run out");
+        }
+        Outcome::Released
+    }
+}
+
+/// An error as one sentence for the job's user.
+fn sentence(e: &ServiceError) -> String {
+    let mut s = e.to_string().replace('\n', " ");
+    if let Some(first) = s.get(..1) {
+        s = first.to_uppercase() + &s[1..];
+    }
+    s
+}
