@@ -31,5 +31,5 @@ pub async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError
     registry.register("rtd_job_seconds", "Seconds from upload to result, summed over the kept finished jobs", seconds);
     let mut text = String::new();
     encode(&mut text, &registry).map_err(|_| crate::ServiceError::Corrupt("metrics encoding".into()))?;
-    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], text).into_response())
+    Ok(([(header::CONTENT_TYPE, "application/openmetrics-text; version=1.0.0; charset=utf-8")], text).into_response())
 }
