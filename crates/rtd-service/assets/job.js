@@ -91,9 +91,9 @@
     $("state").textContent = state;
     $("state").setAttribute("data-state", state);
     if (job.width && job.height) $("size").textContent = job.width + " × " + job.height + " px";
-    if (job.created) {
-      var d = new Date(job.created);
-      $("created").textContent = isNaN(d.getTime()) ? String(job.created) : d.toLocaleString();
+    if (typeof job.created_ms === "number") {
+      var d = new Date(job.created_ms);
+      $("created").textContent = d.toLocaleString();
     }
     var p = Number(job.progress);
     $("progress").value = state === "done" ? 1 : isFinite(p) ? Math.min(1, Math.max(0, p)) : 0;
