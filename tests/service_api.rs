@@ -399,6 +399,30 @@ async fn health_metrics_and_rate_limit() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_large_render_becomes_a_bounded_number_of_ranges() {
+    let tdb = TestDb::new(Db::Sqlite).await;
+    let s = TestServer::start(&tdb.url, 0, test_config()).await;
+    let files = [("scene", "c.gltf", std::fs::read(repo_scene("cornell-box.gltf")).unwrap())];
+    let (st, body, _) = post_job(&s.base, form(&files, &[("spp", "1000"), ("width", "8")])).await;
+    assert_eq!(st, 201, "{body}");
+    let db = Database::connect(&tdb.url).await.unwrap();
+    let rows = sqlx::query("SELECT first_sample, samples FROM tasks WHERE kind = 'render_range' ORDER BY first_sample")
+        .fetch_all(&db.pool)
+        .await
+        .unwrap();
+    let ranges: Vec<(i64, i64)> = rows.iter().map(|r| (r.try_get(0).unwrap(), r.try_get(1).unwrap())).collect();
+    assert!(ranges.len() <= rtd::service::MAX_RANGES_PER_JOB as usize, "{} ranges", ranges.len());
+    // The ranges tile 0..1000 without gap or overlap.
+    let mut next = 0;
+    for (first, n) in &ranges {
+        assert_eq!(*first, next);
+        next += n;
+    }
+    assert_eq!(next, 1000);
+    s.server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_slow_upload_times_out() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let tdb = TestDb::new(Db::Sqlite).await;

@@ -18,6 +18,11 @@ pub const MAX_TEXT_FIELD_CHARS: usize = 200;
 /// Claims of one task before it is failed: a job that kills every worker that takes it is
 /// given up on, not retried for ever.
 pub const MAX_ATTEMPTS: i64 = 3;
+/// Most sample-range tasks one render job becomes: a large spp gets larger ranges, so one
+/// upload cannot flood the queue with tasks or the finishing task with films.
+pub const MAX_RANGES_PER_JOB: u32 = 64;
+/// Shortest lease accepted: renewal runs every quarter lease.
+pub const MIN_LEASE: Duration = Duration::from_secs(1);
 
 /// How `rtd serve` and `rtd worker` behave, builder style from [`ServiceConfig::default`].
 #[derive(Clone, Debug)]
@@ -86,7 +91,7 @@ impl ServiceConfig {
     }
     /// Sets the lease a worker holds on a task.
     pub fn lease(mut self, lease: Duration) -> Self {
-        self.lease = lease;
+        self.lease = lease.max(MIN_LEASE);
         self
     }
     /// Sets the idle worker's polling interval.

@@ -81,11 +81,16 @@ pub fn execute(
     threads: Option<usize>,
     progress: &TaskProgress,
 ) -> Result<TaskOutput, ServiceError> {
-    let dir = tempfile::tempdir().map_err(|e| ServiceError::io("cannot make a work folder", e))?;
+    // The folder's own errors name a server path: logged, and the user told only what failed.
+    let no_room = |e: std::io::Error| {
+        tracing::error!(error = %e, "cannot write a job's files");
+        ServiceError::Job("the render node could not store the job's files".into())
+    };
+    let dir = tempfile::tempdir().map_err(no_room)?;
     let mut paths = Vec::new();
     for f in &inputs.files {
         let path = dir.path().join(format!("{}.{}", f.name, f.format));
-        std::fs::write(&path, &f.data).map_err(|e| ServiceError::io("cannot write a job's input", e))?;
+        std::fs::write(&path, &f.data).map_err(no_room)?;
         paths.push((f.name.clone(), path));
     }
     let find = |name: &str| paths.iter().find(|(n, _)| n == name).map(|(_, p)| p.clone());

@@ -4,7 +4,8 @@
 use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
-use crate::database::{now_ms, Database};
+use crate::config::MAX_RANGES_PER_JOB;
+use crate::database::{now_ms, Backend, Database};
 use crate::{JobKey, ServiceError};
 
 /// What a job does.
@@ -176,6 +177,10 @@ impl JobStore {
         let key = JobKey::generate().map_err(ServiceError::Random)?;
         let params = serde_json::to_string(&job.params).map_err(|e| ServiceError::Corrupt(e.to_string()))?;
         let mut tx = self.db.pool.begin().await?;
+        if self.db.backend == Backend::Postgres {
+            // Uploads count the queue one at a time, so concurrent ones cannot all pass the limit.
+            sqlx::query("SELECT pg_advisory_xact_lock(7044)").execute(&mut *tx).await?;
+        }
         // The insert comes first so that SQLite takes its write lock before the count is read.
         sqlx::query(
             "INSERT INTO jobs (key, kind, state, params, name, email, client, width, height, created_ms) \
@@ -215,7 +220,7 @@ impl JobStore {
             JobKind::Denoise => tasks.push(("denoise", 0, 0, "queued")),
             JobKind::Render => {
                 let spp = job.params.spp;
-                let chunk = chunk_spp.max(1);
+                let chunk = chunk_spp.max(spp.div_ceil(MAX_RANGES_PER_JOB)).max(1);
                 tasks.extend(
                     (0..spp.div_ceil(chunk)).map(|i| ("render_range", i * chunk, chunk.min(spp - i * chunk), "queued")),
                 );

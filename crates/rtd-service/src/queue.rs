@@ -257,16 +257,21 @@ impl JobQueue {
             tx.rollback().await?;
             return Ok(false);
         }
-        sqlx::query("UPDATE tasks SET state = 'failed' WHERE job_key = $1 AND state IN ('queued', 'waiting')")
-            .bind(claim.job.as_str())
-            .execute(&mut *tx)
-            .await?;
-        sqlx::query("UPDATE jobs SET state = 'failed', error = $1, finished_ms = $2 WHERE key = $3")
-            .bind(error)
-            .bind(now_ms())
-            .bind(claim.job.as_str())
-            .execute(&mut *tx)
-            .await?;
+        // The job's other tasks stop too: queued ones are dropped, running ones lose their lease.
+        sqlx::query(
+            "UPDATE tasks SET state = 'failed' WHERE job_key = $1 AND state IN ('queued', 'waiting', 'running')",
+        )
+        .bind(claim.job.as_str())
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query(
+            "UPDATE jobs SET state = 'failed', error = $1, finished_ms = $2 WHERE key = $3 AND state <> 'failed'",
+        )
+        .bind(error)
+        .bind(now_ms())
+        .bind(claim.job.as_str())
+        .execute(&mut *tx)
+        .await?;
         tx.commit().await?;
         Ok(true)
     }

@@ -106,11 +106,14 @@ impl Worker {
         let inputs = match self.fetch(claim).await {
             Ok(i) => i,
             Err(e) => {
-                // The database went away between claim and fetch: the lease will run out.
+                // The database went away between claim and fetch: give the task back if it
+                // can be reached again, else the lease runs out.
                 warn!(worker = %self.id, error = %e, "cannot read the task's inputs");
-                return Outcome::Lost;
+                return self.release(claim).await;
             }
         };
+        // Fetching may have taken a while (a finishing task reads every range's film).
+        let _ = self.queue.renew(claim, self.lease_ms(), 0.0).await;
         let progress = Arc::new(TaskProgress::default());
         let work = {
             let (claim, progress, denoiser, threads) =
@@ -136,9 +139,16 @@ impl Worker {
             return Outcome::Lost;
         }
         match result {
-            Err(join) => self.store_failure(claim, &format!("The worker failed on this job ({join})")).await,
+            Err(join) => {
+                tracing::error!(worker = %self.id, error = %join, "the task's thread failed");
+                self.store_failure(claim, "The render node failed on this job").await
+            }
             Ok(_) if stopping && claim.kind == TaskKind::RenderRange => self.release(claim).await,
-            Ok(Ok(output)) => self.store(claim, output).await,
+            Ok(Ok(output)) => {
+                // Keep the claim alive while storing (the retries below can outlast a lease).
+                let _ = self.queue.renew(claim, self.lease_ms(), 1.0).await;
+                self.store(claim, output).await
+            }
             Ok(Err(_)) if stopping => self.release(claim).await,
             Ok(Err(e)) => self.store_failure(claim, &sentence(&e)).await,
         }
@@ -165,6 +175,7 @@ impl Worker {
                 Err(e) if tokio::time::Instant::now() < deadline => {
                     warn!(worker = %self.id, error = %e, "cannot store the result; retrying");
                     tokio::time::sleep(Duration::from_secs(1)).await;
+                    let _ = self.queue.renew(claim, self.lease_ms(), 1.0).await;
                 }
                 Err(e) => {
                     warn!(worker = %self.id, error = %e, "giving up storing the result; the lease will run out");

@@ -153,7 +153,7 @@ pub struct DenoiseArgs {
     /// The denoiser: model and self-ensemble passes.
     #[command(flatten)]
     pub denoiser: DenoiserArgs,
-    /// Output: .exr or .png/.jpg.
+    /// Output: .exr (the denoised R,G,B with the inputs as noisy.*, guide.*, albedo.*, normal.* layers) or .png/.jpg.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Exposure in stops for 8-bit outputs.
