@@ -82,11 +82,13 @@ async fn upload_watch_compare_and_rate_in_chromium() {
     c.find(Locator::Id("submit")).await.unwrap().click().await.unwrap();
 
     // The job page: state and progress go live, then both images load.
-    c.wait()
-        .at_most(wait)
-        .for_element(Locator::Css("#compare[data-ready='true']"))
-        .await
-        .expect("the result never showed");
+    // Polled by hand: a query that meets the navigation from / to the job page is answered
+    // "aborted by navigation", which is not a failure, so it is asked again.
+    let t = Instant::now();
+    while c.find(Locator::Css("#compare[data-ready='true']")).await.is_err() {
+        assert!(t.elapsed() < wait, "the result never showed");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
     let url = c.current_url().await.unwrap();
     let key = url.path().strip_prefix("/jobs/").expect("the upload did not lead to the job page").to_string();
     assert_eq!(c.find(Locator::Id("state")).await.unwrap().text().await.unwrap(), "done");
