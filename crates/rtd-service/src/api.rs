@@ -47,6 +47,12 @@ impl AppState {
         self.accepting.store(false, Ordering::SeqCst);
     }
 
+    /// Forgets client addresses whose allowance has refilled, so the limiter's memory stays
+    /// bounded by recent clients.
+    pub fn forget_idle_clients(&self) {
+        self.limiter.retain_recent();
+    }
+
     /// Refuses `client` with 429 if it has used up its uploads for now.
     fn check_rate(&self, client: IpAddr) -> Result<(), ApiError> {
         self.limiter.check_key(&client).map_err(|not_until| {

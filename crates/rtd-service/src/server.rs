@@ -60,6 +60,17 @@ pub async fn start_server(
         handles.push(tokio::spawn(worker.run(stopped.clone())));
     }
     handles.push(tokio::spawn(retention(JobStore::new(db), config.keep, stopped.clone())));
+    {
+        let (state, mut stopped) = (state.clone(), stopped.clone());
+        handles.push(tokio::spawn(async move {
+            loop {
+                tokio::select! {
+                    _ = tokio::time::sleep(RETENTION_SWEEP) => state.forget_idle_clients(),
+                    _ = stopped.wait_for(|s| *s) => return,
+                }
+            }
+        }));
+    }
     let stop_on_signal = stop.clone();
     tokio::spawn(async move {
         signal.await;

@@ -127,10 +127,15 @@ impl Worker {
         let result = loop {
             tokio::select! {
                 r = &mut work => break r,
-                _ = renew.tick() => match self.queue.renew(claim, self.lease_ms(), progress.fraction()).await {
-                    Ok(true) => {}
-                    Ok(false) => { lost = true; progress.stop(); }
-                    Err(e) => warn!(worker = %self.id, error = %e, "cannot renew the lease"),
+                // A renewal that hangs (a half-open connection) is abandoned at the next tick.
+                _ = renew.tick() => match tokio::time::timeout(
+                    self.config.lease / 4,
+                    self.queue.renew(claim, self.lease_ms(), progress.fraction()),
+                ).await {
+                    Ok(Ok(true)) => {}
+                    Ok(Ok(false)) => { lost = true; progress.stop(); }
+                    Ok(Err(e)) => warn!(worker = %self.id, error = %e, "cannot renew the lease"),
+                    Err(_) => warn!(worker = %self.id, "renewing the lease timed out"),
                 },
                 _ = shutdown.changed(), if !stopping => { stopping = true; progress.stop(); }
             }
