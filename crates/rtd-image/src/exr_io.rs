@@ -6,7 +6,7 @@ use exr::prelude::{
 };
 
 use crate::layer::{join, Channels, Layer};
-use crate::{write_bytes_atomic, HdrImage, ImageError, MAX_DIMENSION, MAX_PIXELS};
+use crate::{write_bytes_atomic, HdrImage, ImageError};
 
 /// Named float channels of one size: the content of a one-part EXR.
 ///
@@ -188,18 +188,7 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
 /// [`MAX_DIMENSION`], or larger than [`MAX_PIXELS`] together.
 fn check_exr_headers(path: &Path) -> Result<(), ImageError> {
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| ImageError::decode(path, e))?;
-    let mut total = 0usize;
-    for header in meta.headers.iter() {
-        let (w, h) = (header.layer_size.width(), header.layer_size.height());
-        if w == 0 || h == 0 || w > MAX_DIMENSION as usize || h > MAX_DIMENSION as usize {
-            return Err(ImageError::invalid(path, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
-        }
-        total = total.saturating_add(w * h);
-    }
-    if total > MAX_PIXELS {
-        return Err(ImageError::invalid(path, format!("{total} pixels in all parts exceed {MAX_PIXELS}")));
-    }
-    Ok(())
+    crate::sniff::check_exr_parts(path, &meta).map(|_| ())
 }
 
 #[cfg(test)]

@@ -33,6 +33,24 @@ pub fn check_image_size(name: &Path, width: usize, height: usize) -> Result<(), 
     Ok(())
 }
 
+/// Refuses an EXR whose parts are empty or over [`MAX_DIMENSION`] a side, or over
+/// [`MAX_PIXELS`] together, from its headers; returns the first part's size.
+pub(crate) fn check_exr_parts(name: &Path, meta: &exr::meta::MetaData) -> Result<(usize, usize), ImageError> {
+    let first = meta.headers.first().ok_or_else(|| ImageError::decode(name, "no image part"))?;
+    let mut total = 0usize;
+    for header in meta.headers.iter() {
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        if w == 0 || h == 0 || w > MAX_DIMENSION as usize || h > MAX_DIMENSION as usize {
+            return Err(ImageError::invalid(name, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
+        }
+        total = total.saturating_add(w * h);
+    }
+    if total > MAX_PIXELS {
+        return Err(ImageError::invalid(name, format!("{total} pixels in all parts exceed {MAX_PIXELS}")));
+    }
+    Ok((first.layer_size.width(), first.layer_size.height()))
+}
+
 impl ImageFormat {
     /// The format `bytes` begin with: EXR, PNG or JPEG magic numbers, else `None`.
     pub fn sniff(bytes: &[u8]) -> Option<ImageFormat> {
@@ -67,17 +85,7 @@ pub fn read_image_header(name: &Path, bytes: &[u8]) -> Result<ImageHeader, Image
         ImageFormat::Exr => {
             let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
                 .map_err(|e| ImageError::decode(name, e))?;
-            let first = meta.headers.first().ok_or_else(|| ImageError::decode(name, "no image part"))?;
-            let mut total = 0usize;
-            for header in meta.headers.iter() {
-                let (w, h) = (header.layer_size.width(), header.layer_size.height());
-                check_image_size(name, w, h)?;
-                total = total.saturating_add(w * h);
-            }
-            if total > MAX_PIXELS {
-                return Err(ImageError::invalid(name, format!("{total} pixels in all parts exceed {MAX_PIXELS}")));
-            }
-            (first.layer_size.width(), first.layer_size.height())
+            check_exr_parts(name, &meta)?
         }
         ImageFormat::Png | ImageFormat::Jpeg => {
             let reader = image::ImageReader::new(Cursor::new(bytes))

@@ -295,9 +295,7 @@ impl JobStore {
     /// Stores (or replaces) the rating of job `key`; false if there is no such job.
     pub async fn rate(&self, key: &JobKey, rating: i64, comment: Option<String>) -> Result<bool, ServiceError> {
         let mut tx = self.db.pool.begin().await?;
-        let found =
-            sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(key.as_str()).execute(&mut *tx).await?;
-        if found.rows_affected() == 0 {
+        if crate::queue::lock_job(&mut tx, key.as_str()).await? == 0 {
             return Ok(false);
         }
         sqlx::query(

@@ -75,6 +75,13 @@ pub enum TaskOutput {
     },
 }
 
+/// Locks job `job`'s row for the rest of `tx`: completions and failures of one job's tasks then
+/// run one at a time (and SQLite takes its write lock here, before any read). Returns the rows
+/// locked: 0 if there is no such job.
+pub(crate) async fn lock_job(tx: &mut sqlx::AnyConnection, job: &str) -> Result<u64, ServiceError> {
+    Ok(sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(job).execute(tx).await?.rows_affected())
+}
+
 /// The queue over a [`Database`].
 #[derive(Clone, Debug)]
 pub struct JobQueue {
@@ -172,9 +179,8 @@ impl JobQueue {
     pub async fn complete(&self, claim: &Claim, output: TaskOutput) -> Result<bool, ServiceError> {
         let now = now_ms();
         let mut tx = self.db.pool.begin().await?;
-        // Lock the job row first: completions of one job's tasks then run one at a time, so the
-        // last range is seen as last by exactly one of them (and SQLite takes its write lock here).
-        sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(claim.job.as_str()).execute(&mut *tx).await?;
+        // Locked first, so the last range is seen as last by exactly one completion.
+        lock_job(&mut tx, claim.job.as_str()).await?;
         let film = match &output {
             TaskOutput::Film(bytes) => Some(bytes.clone()),
             TaskOutput::Result { .. } => None,
@@ -244,7 +250,7 @@ impl JobQueue {
     /// other tasks are dropped. False if the claim was lost.
     pub async fn fail(&self, claim: &Claim, error: &str) -> Result<bool, ServiceError> {
         let mut tx = self.db.pool.begin().await?;
-        sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(claim.job.as_str()).execute(&mut *tx).await?;
+        lock_job(&mut tx, claim.job.as_str()).await?;
         let mine = sqlx::query(
             "UPDATE tasks SET state = 'failed', lease_until_ms = NULL WHERE id = $1 AND worker = $2 AND attempts = $3 AND state = 'running'",
         )
