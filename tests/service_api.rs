@@ -101,7 +101,7 @@ async fn split_render_equals_the_one_machine_render(db: Db) {
     assert_eq!((claim.first_sample, claim.samples), (0, 3));
     let inputs = TaskInputs {
         files: queue.inputs(&key).await.unwrap(),
-        params: serde_json::from_str(&queue.params(&key).await.unwrap()).unwrap(),
+        params: queue.params(&key).await.unwrap(),
         films: vec![],
     };
     let out = execute(&claim, &inputs, &denoiser(), Some(1), &TaskProgress::default()).unwrap();

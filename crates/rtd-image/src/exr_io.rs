@@ -119,6 +119,13 @@ impl Layers {
 /// Writes `layers` as a one-part, 32-bit float EXR, atomically.
 /// Non-finite samples are written as 0, so NaN or Inf never reaches a file.
 pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
+    write_bytes_atomic(path, &encode_exr(path, layers)?)
+}
+
+/// The bytes [`write_exr`] writes for `layers`: the same bytes for the same layers on any
+/// machine, so an EXR made on one machine and written on another is the file the second would
+/// have made. `path` names the file in errors.
+pub fn encode_exr(path: &Path, layers: &Layers) -> Result<Vec<u8>, ImageError> {
     if layers.channels.is_empty() || layers.width == 0 || layers.height == 0 {
         return Err(ImageError::invalid(path, "refusing to write an empty EXR"));
     }
@@ -139,7 +146,7 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
     // exr needs a seekable writer: encode to memory, then write the bytes atomically.
     let mut encoded = std::io::Cursor::new(Vec::new());
     image.write().to_buffered(&mut encoded).map_err(|e| ImageError::decode(path, e))?;
-    write_bytes_atomic(path, encoded.get_ref())
+    Ok(encoded.into_inner())
 }
 
 /// Reads every channel of every part of an EXR (flat, largest resolution level), as f32. A

@@ -25,7 +25,7 @@ mod sniff;
 
 pub use atomic::{parent_dir, write_atomic, write_bytes_atomic, write_json};
 pub use error::ImageError;
-pub use exr_io::{read_exr, write_exr, Layers};
+pub use exr_io::{encode_exr, read_exr, write_exr, Layers};
 pub use format::ImageFormat;
 pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};

@@ -32,6 +32,9 @@ pub enum ServiceError {
     /// The pipeline refused or failed the work.
     #[error(transparent)]
     Pipeline(#[from] rtd_pipeline::PipelineError),
+    /// A dataset could not be read, added to or rendered.
+    #[error(transparent)]
+    Dataset(#[from] rtd_train::TrainError),
     /// The job's inputs could not be worked on; the sentence is for its user.
     #[error("{0}")]
     Job(String),

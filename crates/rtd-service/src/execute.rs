@@ -9,6 +9,7 @@ use rtd_denoise::Denoiser;
 use rtd_image::{Progress, Tonemap};
 use rtd_pipeline::{CameraChoice, DenoiseSources, Pipeline, PipelineRun, SceneView};
 use rtd_render::{Film, RenderSettings};
+use rtd_train::dataset::{render_shard, DatasetOptions};
 
 use crate::jobs::{Input, RenderParams};
 use crate::queue::{Claim, TaskKind, TaskOutput};
@@ -66,8 +67,9 @@ impl Progress for TaskProgress {
 pub struct TaskInputs {
     /// The job's uploaded files.
     pub files: Vec<Input>,
-    /// The job's render settings.
-    pub params: RenderParams,
+    /// The job's settings as stored (JSON): [`RenderParams`] for a render, the
+    /// [`DatasetOptions`] for a dataset.
+    pub params: String,
     /// The finished ranges' films, in order (the finishing task only).
     pub films: Vec<Vec<u8>>,
 }
@@ -97,7 +99,7 @@ pub fn execute(
     let result = match claim.kind {
         TaskKind::Denoise => denoise(dir.path(), &find, denoiser),
         TaskKind::RenderRange => {
-            let (view, settings) = render_view(&find, &inputs.params, threads)?;
+            let (view, settings) = render_view(&find, &render_params(inputs)?, threads)?;
             let film = Pipeline::new(&view, settings).render_range(claim.first_sample, claim.samples, progress)?;
             if film.samples() != claim.samples {
                 return Err(ServiceError::Job("the render was stopped".into()));
@@ -105,13 +107,27 @@ pub fn execute(
             postcard::to_stdvec(&film).map(TaskOutput::Film).map_err(|e| ServiceError::Corrupt(e.to_string()))
         }
         TaskKind::RenderFinish => {
-            let (view, settings) = render_view(&find, &inputs.params, threads)?;
-            let film = merge_films(&inputs.films, inputs.params.spp)?;
+            let params = render_params(inputs)?;
+            let (view, settings) = render_view(&find, &params, threads)?;
+            let film = merge_films(&inputs.films, params.spp)?;
             let run = Pipeline::new(&view, settings).denoise(denoiser).finish(film, progress)?;
             render_result(dir.path(), &run)
         }
+        TaskKind::DatasetScene => {
+            let options: DatasetOptions = serde_json::from_str(&inputs.params)
+                .map_err(|e| ServiceError::Corrupt(format!("dataset options: {e}")))?;
+            let shard = render_shard(dir.path(), &options, claim.scene, progress)
+                .map_err(|e| ServiceError::Job(e.to_string()))?
+                .ok_or_else(|| ServiceError::Job("the render was stopped".into()))?;
+            postcard::to_stdvec(&shard).map(TaskOutput::Shard).map_err(|e| ServiceError::Corrupt(e.to_string()))
+        }
     };
     result.map_err(|e| hide_folder(e, dir.path()))
+}
+
+/// A render job's settings.
+fn render_params(inputs: &TaskInputs) -> Result<RenderParams, ServiceError> {
+    serde_json::from_str(&inputs.params).map_err(|e| ServiceError::Corrupt(format!("job parameters: {e}")))
 }
 
 /// The denoise job: `rtd denoise` on the uploaded files.

@@ -16,6 +16,8 @@ pub enum JobKind {
     Denoise,
     /// Render an uploaded scene, split into sample ranges, then denoise it.
     Render,
+    /// Render a training dataset's scenes (`rtd datagen --database`), one task per scene.
+    Dataset,
 }
 
 impl JobKind {
@@ -24,6 +26,7 @@ impl JobKind {
         match self {
             JobKind::Denoise => "denoise",
             JobKind::Render => "render",
+            JobKind::Dataset => "dataset",
         }
     }
     /// The kind named `s`.
@@ -31,6 +34,7 @@ impl JobKind {
         match s {
             "denoise" => Ok(JobKind::Denoise),
             "render" => Ok(JobKind::Render),
+            "dataset" => Ok(JobKind::Dataset),
             other => Err(ServiceError::Corrupt(format!("job kind {other:?}"))),
         }
     }
@@ -153,6 +157,68 @@ pub struct QueueCounts {
     pub workers_seen: i64,
 }
 
+/// The columns of a new job's row that do not come from its upload.
+struct JobRow<'a> {
+    key: &'a JobKey,
+    kind: JobKind,
+    params: &'a str,
+    size: (u32, u32),
+}
+
+/// Inserts a queued job's row: `row`, and the user's fields from `job`.
+async fn insert_job(tx: &mut sqlx::AnyConnection, row: &JobRow<'_>, job: &NewJob) -> Result<(), ServiceError> {
+    sqlx::query(
+        "INSERT INTO jobs (key, kind, state, params, name, email, client, width, height, created_ms) \
+         VALUES ($1, $2, 'queued', $3, $4, $5, $6, $7, $8, $9)",
+    )
+    .bind(row.key.as_str())
+    .bind(row.kind.as_str())
+    .bind(row.params)
+    .bind(job.name.clone())
+    .bind(job.email.clone())
+    .bind(job.client.clone())
+    .bind(row.size.0 as i64)
+    .bind(row.size.1 as i64)
+    .bind(now_ms())
+    .execute(tx)
+    .await?;
+    Ok(())
+}
+
+/// A task to insert with its job.
+struct NewTask {
+    kind: &'static str,
+    first_sample: u32,
+    samples: u32,
+    scene: Option<u64>,
+    /// `queued`, or `waiting` for a finishing task.
+    state: &'static str,
+}
+
+impl NewTask {
+    fn new(kind: &'static str, first_sample: u32, samples: u32, state: &'static str) -> Self {
+        NewTask { kind, first_sample, samples, scene: None, state }
+    }
+}
+
+/// Inserts job `key`'s tasks.
+async fn insert_tasks(tx: &mut sqlx::AnyConnection, key: &JobKey, tasks: &[NewTask]) -> Result<(), ServiceError> {
+    for t in tasks {
+        sqlx::query(
+            "INSERT INTO tasks (job_key, kind, first_sample, samples, scene, state) VALUES ($1, $2, $3, $4, $5, $6)",
+        )
+        .bind(key.as_str())
+        .bind(t.kind)
+        .bind(t.first_sample as i64)
+        .bind(t.samples as i64)
+        .bind(t.scene.map(|s| s as i64))
+        .bind(t.state)
+        .execute(&mut *tx)
+        .await?;
+    }
+    Ok(())
+}
+
 /// The jobs table and its neighbours.
 #[derive(Clone, Debug)]
 pub struct JobStore {
@@ -182,21 +248,8 @@ impl JobStore {
             sqlx::query("SELECT pg_advisory_xact_lock(7044)").execute(&mut *tx).await?;
         }
         // The insert comes first so that SQLite takes its write lock before the count is read.
-        sqlx::query(
-            "INSERT INTO jobs (key, kind, state, params, name, email, client, width, height, created_ms) \
-             VALUES ($1, $2, 'queued', $3, $4, $5, $6, $7, $8, $9)",
-        )
-        .bind(key.as_str())
-        .bind(job.kind.as_str())
-        .bind(params)
-        .bind(job.name.clone())
-        .bind(job.email.clone())
-        .bind(job.client.clone())
-        .bind(job.size.0 as i64)
-        .bind(job.size.1 as i64)
-        .bind(now_ms())
-        .execute(&mut *tx)
-        .await?;
+        let row = JobRow { key: &key, kind: job.kind, params: &params, size: job.size };
+        insert_job(&mut tx, &row, job).await?;
         let active: i64 = sqlx::query("SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')")
             .fetch_one(&mut *tx)
             .await?
@@ -214,31 +267,51 @@ impl JobStore {
                 .execute(&mut *tx)
                 .await?;
         }
-        let insert_task = "INSERT INTO tasks (job_key, kind, first_sample, samples, state) VALUES ($1, $2, $3, $4, $5)";
-        let mut tasks: Vec<(&str, u32, u32, &str)> = Vec::new();
+        let mut tasks: Vec<NewTask> = Vec::new();
         match job.kind {
-            JobKind::Denoise => tasks.push(("denoise", 0, 0, "queued")),
+            JobKind::Denoise => tasks.push(NewTask::new("denoise", 0, 0, "queued")),
             JobKind::Render => {
                 let spp = job.params.spp;
                 let chunk = chunk_spp.max(spp.div_ceil(MAX_RANGES_PER_JOB)).max(1);
                 tasks.extend(
-                    (0..spp.div_ceil(chunk)).map(|i| ("render_range", i * chunk, chunk.min(spp - i * chunk), "queued")),
+                    (0..spp.div_ceil(chunk))
+                        .map(|i| NewTask::new("render_range", i * chunk, chunk.min(spp - i * chunk), "queued")),
                 );
-                tasks.push(("render_finish", 0, spp, "waiting"));
+                tasks.push(NewTask::new("render_finish", 0, spp, "waiting"));
             }
+            JobKind::Dataset => return Err(ServiceError::Corrupt("a dataset job is queued by its owner".into())),
         }
-        for (kind, first, samples, state) in tasks {
-            sqlx::query(insert_task)
-                .bind(key.as_str())
-                .bind(kind)
-                .bind(first as i64)
-                .bind(samples as i64)
-                .bind(state)
-                .execute(&mut *tx)
-                .await?;
-        }
+        insert_tasks(&mut tx, &key, &tasks).await?;
         tx.commit().await?;
         Ok(key)
+    }
+
+    /// Queues dataset job `key` (made by its owner, who keeps the key beside the dataset): one
+    /// task for each of `scenes`, rendered with `options_json`. A job of that key already
+    /// stored is left as it is, so queuing twice queues once. Returns true when it was new.
+    pub async fn create_dataset(&self, key: &JobKey, options_json: &str, scenes: &[u64]) -> Result<bool, ServiceError> {
+        let mut tx = self.db.pool.begin().await?;
+        if crate::queue::lock_job(&mut tx, key.as_str()).await? == 1 {
+            return Ok(false);
+        }
+        let row = JobRow { key, kind: JobKind::Dataset, params: options_json, size: (0, 0) };
+        let none = NewJob {
+            kind: JobKind::Dataset,
+            params: RenderParams::default(),
+            name: Some("rtd datagen".into()),
+            email: None,
+            client: None,
+            size: (0, 0),
+            inputs: vec![],
+        };
+        insert_job(&mut tx, &row, &none).await?;
+        let tasks: Vec<NewTask> = scenes
+            .iter()
+            .map(|&s| NewTask { scene: Some(s), ..NewTask::new("dataset_scene", 0, 0, "queued") })
+            .collect();
+        insert_tasks(&mut tx, key, &tasks).await?;
+        tx.commit().await?;
+        Ok(true)
     }
 
     /// The job's state, or `None` for an unknown key.

@@ -9,6 +9,8 @@
 //! - [`Worker`]: a render node's loop; [`execute`] does one task with the same library calls
 //!   as the command line, so results have the command line's bytes. A render job is split into
 //!   sample ranges that any workers render, merged exactly ([`rtd_render::Film::merge`]).
+//! - [`DatasetJob`]: `rtd datagen --database`, a training set rendered a scene per task on
+//!   any workers and gathered into one directory, the same as a one-machine run.
 //! - [`router`]: the axum router; [`start_server`] and [`run_worker`] are `rtd serve` and
 //!   `rtd worker`.
 
@@ -17,6 +19,7 @@
 mod api;
 mod config;
 mod database;
+mod dataset_job;
 mod error;
 pub mod execute;
 mod jobs;
@@ -35,6 +38,7 @@ pub use config::{
     MAX_RANGES_PER_JOB, MAX_TEXT_FIELD_CHARS, MIN_LEASE,
 };
 pub use database::{now_ms, redact, sqlite_url, Backend, Database};
+pub use dataset_job::{DatasetJob, DatasetRun, QUEUE_FILE};
 pub use error::{ApiError, ServiceError};
 pub use execute::{execute, TaskInputs, TaskProgress};
 pub use jobs::{Input, JobKind, JobStatus, JobStore, NewJob, QueueCounts, Rating, RenderParams, ResultFile};

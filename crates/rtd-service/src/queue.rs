@@ -22,6 +22,8 @@ pub enum TaskKind {
     RenderRange,
     /// Merge a render's ranges, run the guide pass and the denoiser.
     RenderFinish,
+    /// Render every view of one scene of a dataset (`rtd datagen --database`).
+    DatasetScene,
 }
 
 impl TaskKind {
@@ -31,6 +33,7 @@ impl TaskKind {
             "denoise" => Ok(TaskKind::Denoise),
             "render_range" => Ok(TaskKind::RenderRange),
             "render_finish" => Ok(TaskKind::RenderFinish),
+            "dataset_scene" => Ok(TaskKind::DatasetScene),
             other => Err(ServiceError::Corrupt(format!("task kind {other:?}"))),
         }
     }
@@ -49,6 +52,8 @@ pub struct Claim {
     pub first_sample: u32,
     /// Samples (render ranges; the whole spp for the finishing task).
     pub samples: u32,
+    /// The scene's index (dataset scenes).
+    pub scene: u64,
     /// Which claim of this task this is (1 for the first).
     pub attempt: i64,
     /// The worker holding it.
@@ -60,6 +65,9 @@ pub struct Claim {
 pub enum TaskOutput {
     /// A render range's film, encoded.
     Film(Vec<u8>),
+    /// A dataset scene's views ([`rtd_train::dataset::SceneShard`]), encoded; kept until the
+    /// dataset's owner has added them to its directory.
+    Shard(Vec<u8>),
     /// The job's result.
     Result {
         /// Multilayer EXR.
@@ -105,7 +113,7 @@ impl JobQueue {
             "UPDATE tasks SET state = 'running', worker = $1, lease_until_ms = $2, attempts = attempts + 1, progress = 0 \
              WHERE id = (SELECT id FROM tasks WHERE state = 'queued' OR (state = 'running' AND lease_until_ms < $3) \
              ORDER BY id LIMIT 1{lock}) \
-             RETURNING id, job_key, kind, first_sample, samples, attempts"
+             RETURNING id, job_key, kind, first_sample, samples, attempts, scene"
         );
         let row = sqlx::query(&sql).bind(worker).bind(now + lease_ms).bind(now).fetch_optional(&self.db.pool).await?;
         let Some(row) = row else { return Ok(None) };
@@ -117,6 +125,7 @@ impl JobQueue {
             first_sample: row.try_get::<i64, _>(3)? as u32,
             samples: row.try_get::<i64, _>(4)? as u32,
             attempt: row.try_get(5)?,
+            scene: row.try_get::<Option<i64>, _>(6)?.unwrap_or(0) as u64,
             worker: worker.to_string(),
         };
         sqlx::query("UPDATE jobs SET state = 'running', started_ms = $1 WHERE key = $2 AND state = 'queued'")
@@ -181,15 +190,15 @@ impl JobQueue {
         let mut tx = self.db.pool.begin().await?;
         // Locked first, so the last range is seen as last by exactly one completion.
         lock_job(&mut tx, claim.job.as_str()).await?;
-        let film = match &output {
-            TaskOutput::Film(bytes) => Some(bytes.clone()),
+        let kept = match &output {
+            TaskOutput::Film(bytes) | TaskOutput::Shard(bytes) => Some(bytes.clone()),
             TaskOutput::Result { .. } => None,
         };
         let mine = sqlx::query(
             "UPDATE tasks SET state = 'done', progress = 1, output = $1, completed_by = $2, lease_until_ms = NULL \
              WHERE id = $3 AND worker = $2 AND attempts = $4 AND state = 'running'",
         )
-        .bind(film)
+        .bind(kept)
         .bind(claim.worker.clone())
         .bind(claim.id)
         .bind(claim.attempt)
@@ -200,6 +209,8 @@ impl JobQueue {
             return Ok(false);
         }
         match output {
+            // The dataset's owner collects shards and marks the job done ([`crate::DatasetJob`]).
+            TaskOutput::Shard(_) => {}
             TaskOutput::Film(_) => {
                 let left: i64 = sqlx::query(
                     "SELECT COUNT(*) FROM tasks WHERE job_key = $1 AND kind = 'render_range' AND state <> 'done'",

@@ -148,7 +148,6 @@ impl Worker {
                 tracing::error!(worker = %self.id, error = %join, "the task's thread failed");
                 self.store_failure(claim, "The render node failed on this job").await
             }
-            Ok(_) if stopping && claim.kind == TaskKind::RenderRange => self.release(claim).await,
             Ok(Ok(output)) => {
                 // Keep the claim alive while storing (the retries below can outlast a lease).
                 let _ = self.queue.renew(claim, self.lease_ms(), 1.0).await;
@@ -161,8 +160,7 @@ impl Worker {
 
     async fn fetch(&self, claim: &Claim) -> Result<TaskInputs, ServiceError> {
         let files = self.queue.inputs(&claim.job).await?;
-        let params = serde_json::from_str(&self.queue.params(&claim.job).await?)
-            .map_err(|e| ServiceError::Corrupt(format!("job parameters: {e}")))?;
+        let params = self.queue.params(&claim.job).await?;
         let films = match claim.kind {
             TaskKind::RenderFinish => self.queue.range_films(&claim.job).await?,
             _ => Vec::new(),

@@ -337,8 +337,16 @@ pub struct DatagenArgs {
     /// Instead of generating: re-render the guide layers of the existing dataset's views in place
     /// with the current guide pass (noisy renders and references are kept). The dataset's own
     /// settings apply, so the generation options cannot be given with it.
-    #[arg(long, conflicts_with_all = ["seed", "scenes", "views", "size", "reference_spp", "split"])]
+    #[arg(long, conflicts_with_all = ["seed", "scenes", "views", "size", "reference_spp", "split", "database"])]
     pub refresh_guides: bool,
+    /// Render on the queue instead: queue one task per scene in this database (sqlite://… or
+    /// postgres://…) for `rtd worker` nodes, and gather their views into the output directory
+    /// as they finish. The dataset is the same as without it. Rerun to resume.
+    #[arg(long, value_name = "URL")]
+    pub database: Option<String>,
+    /// With --database: also render on this many workers in this process.
+    #[arg(long, default_value_t = 0, requires = "database", value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub workers: u32,
     /// Hide the progress bar.
     #[arg(long, short)]
     pub quiet: bool,

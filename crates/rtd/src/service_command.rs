@@ -4,8 +4,16 @@
 use std::sync::Arc;
 
 use rtd_denoise::Denoiser;
-use rtd_service::{redact, run_worker, shutdown_signal, sqlite_url, start_server, Database, ServiceConfig};
+use rtd_image::Progress;
+use rtd_service::{
+    redact, run_worker, shutdown_signal, sqlite_url, start_server, Database, DatasetJob, DatasetRun, ServiceConfig,
+    Worker,
+};
+use rtd_train::dataset::{DatasetOptions, Manifest};
 
+use crate::args::DatagenArgs;
+use crate::exit::Interrupted;
+use crate::progress::TaskBar;
 use crate::service_args::{NodeArgs, ServeArgs, WorkerArgs};
 
 /// Logs to standard error, at `info` unless `RUST_LOG` says otherwise.
@@ -79,4 +87,53 @@ pub fn worker(args: &WorkerArgs) -> anyhow::Result<()> {
         run_worker(db, denoiser, config, shutdown_signal()).await?;
         Ok(())
     })
+}
+
+/// Runs `rtd datagen --database URL`: queues the dataset's missing scenes, renders on
+/// `--workers` in-process workers as well as any `rtd worker` nodes, and gathers the views
+/// into the output directory until all are in or Ctrl-C.
+pub fn datagen_on_queue(args: &DatagenArgs, url: &str, options: &DatasetOptions) -> anyhow::Result<()> {
+    init_logging();
+    let bar = TaskBar::new(args.quiet);
+    let run = runtime()?.block_on(async {
+        let db = Database::connect(url).await?;
+        let (stop, stopped) = tokio::sync::watch::channel(false);
+        let mut workers = Vec::new();
+        if args.workers > 0 {
+            let denoiser = Arc::new(Denoiser::builtin()?);
+            for _ in 0..args.workers {
+                let worker = Worker::new(db.clone(), denoiser.clone(), ServiceConfig::default())?;
+                workers.push(tokio::spawn(worker.run(stopped.clone())));
+            }
+        } else {
+            bar.note(&format!("queued on {}; start `rtd worker --database URL` on the render nodes", redact(url)));
+        }
+        let run = DatasetJob::new(db, &args.output).run(options, &bar).await;
+        // In-process workers give their tasks back to the queue for the nodes.
+        let _ = stop.send(true);
+        for w in workers {
+            let _ = w.await;
+        }
+        anyhow::Ok(run?)
+    })?;
+    bar.finish();
+    let manifest = Manifest::load(&args.output)?;
+    let summary = format!(
+        "{}: {} views ({} validation), {} rejected",
+        args.output.display(),
+        manifest.views.len(),
+        manifest.views.iter().filter(|v| v.validation).count(),
+        manifest.rejected.len()
+    );
+    match run {
+        DatasetRun::Complete { added, .. } => {
+            eprintln!("{summary}; {added} added from the queue");
+            Ok(())
+        }
+        DatasetRun::Interrupted { job, added } => {
+            eprintln!("{summary}; {added} added from the queue");
+            let kept = format!("job {job} stays queued; rerun the same command to gather the rest");
+            Err(Interrupted(kept).into())
+        }
+    }
 }

@@ -36,6 +36,9 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
             SplitArg::Training => Split::Training,
             SplitArg::Validation => Split::Validation,
         });
+    if let Some(url) = &args.database {
+        return crate::service_command::datagen_on_queue(args, url, &options);
+    }
     let bar = TaskBar::new(args.quiet);
     let manifest = generate_dataset(&args.output, &options, &bar)?;
     bar.finish();
