@@ -36,6 +36,7 @@ on_both_databases!(
     queued_jobs_survive_a_restart,
     shutdown_gives_running_work_back,
     finished_jobs_expire_with_their_inputs,
+    an_unreadable_task_fails_its_job_once,
 );
 
 async fn table_count(url: &str, table: &str) -> i64 {
@@ -447,5 +448,54 @@ async fn a_slow_upload_times_out() {
     assert!(text.starts_with("HTTP/1.1 408"), "{text}");
     assert!(text.contains(r#"{"error":"The upload took longer than 1 s."}"#), "{text}");
     assert_eq!(table_count(&tdb.url, "jobs").await, 0);
+    s.server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn trickled_headers_time_out() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let tdb = TestDb::new(Db::Sqlite).await;
+    let s = TestServer::start(&tdb.url, 0, test_config().upload_timeout(Duration::from_secs(1))).await;
+    let mut tcp = tokio::net::TcpStream::connect(s.server.addr).await.unwrap();
+    // Slowloris: the request line and one header, then nothing.
+    tcp.write_all(b"POST /api/jobs HTTP/1.1\r\nHost: x\r\n").await.unwrap();
+    let mut answer = Vec::new();
+    let read = tokio::time::timeout(Duration::from_secs(20), tcp.read_to_end(&mut answer)).await;
+    assert!(read.is_ok(), "the server kept a connection whose headers never ended");
+    assert!(!String::from_utf8_lossy(&answer).contains("201"));
+    assert_eq!(table_count(&tdb.url, "jobs").await, 0);
+    // The server still answers everyone else.
+    let ok = client().get(format!("{}/healthz", s.base)).send().await.unwrap();
+    assert_eq!(ok.status(), 200);
+    s.server.shutdown().await.unwrap();
+}
+
+/// A task row no worker can read (here a kind this version does not know) fails with its job
+/// at the first claim, instead of coming back every lease.
+async fn an_unreadable_task_fails_its_job_once(db: Db) {
+    let tdb = TestDb::new(db).await;
+    let s = TestServer::start(&tdb.url, 0, test_config()).await;
+    let dir = tempfile::tempdir().unwrap();
+    let (color, guide) = noisy_and_guide(dir.path(), 16, 1);
+    let files =
+        [("color", "c.exr", std::fs::read(&color).unwrap()), ("guide", "g.exr", std::fs::read(&guide).unwrap())];
+    let (status, body, _) = post_job(&s.base, form(&files, &[])).await;
+    assert_eq!(status, 201, "{body}");
+    let key = body["key"].as_str().unwrap().to_string();
+    let dbc = Database::connect(&tdb.url).await.unwrap();
+    sqlx::query("UPDATE tasks SET kind = 'from_the_future' WHERE job_key = $1")
+        .bind(&key)
+        .execute(&dbc.pool)
+        .await
+        .unwrap();
+    let queue = JobQueue::new(dbc.clone());
+    let e = queue.claim("node-a", 1).await.unwrap_err().to_string();
+    assert!(e.contains("from_the_future"), "{e}");
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    assert!(queue.claim("node-a", 1).await.unwrap().is_none(), "the lease ran out, yet nothing is claimable");
+    let st: serde_json::Value =
+        client().get(format!("{}/api/jobs/{key}", s.base)).send().await.unwrap().json().await.unwrap();
+    assert_eq!(st["state"], "failed", "{st}");
+    assert_eq!(st["error"], "The job's record is damaged and cannot be worked on", "{st}");
     s.server.shutdown().await.unwrap();
 }

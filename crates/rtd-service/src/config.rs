@@ -35,7 +35,7 @@ pub struct ServiceConfig {
     pub keep: Duration,
     /// Uploads and ratings one client address may send per minute.
     pub uploads_per_minute: u32,
-    /// How long a request body may take to arrive.
+    /// How long a request's headers may take to arrive, and then its body.
     pub upload_timeout: Duration,
     /// How long a worker's claim on a task lasts unless renewed.
     pub lease: Duration,

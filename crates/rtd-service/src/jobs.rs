@@ -419,6 +419,16 @@ impl JobStore {
     pub async fn purge_before(&self, cutoff_ms: i64) -> Result<u64, ServiceError> {
         let old = "SELECT key FROM jobs WHERE created_ms < $1 AND state IN ('done', 'failed')";
         let mut tx = self.db.pool.begin().await?;
+        if self.db.backend == Backend::Postgres {
+            // One sweep at a time across servers, so that two never lock the same rows in turn.
+            sqlx::query("SELECT pg_advisory_xact_lock(7045)").execute(&mut *tx).await?;
+        }
+        // The job rows are locked first, as every other writer of a job does (a rating locks
+        // its job, then writes the ratings table), so the sweep cannot deadlock with them.
+        sqlx::query("UPDATE jobs SET key = key WHERE created_ms < $1 AND state IN ('done', 'failed')")
+            .bind(cutoff_ms)
+            .execute(&mut *tx)
+            .await?;
         for table in ["inputs", "tasks", "ratings"] {
             sqlx::query(&format!("DELETE FROM {table} WHERE job_key IN ({old})"))
                 .bind(cutoff_ms)

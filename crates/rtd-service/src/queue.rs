@@ -90,6 +90,23 @@ pub(crate) async fn lock_job(tx: &mut sqlx::AnyConnection, job: &str) -> Result<
     Ok(sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(job).execute(tx).await?.rows_affected())
 }
 
+/// The claim a `RETURNING id, job_key, kind, first_sample, samples, attempts, scene` row gives
+/// `worker`.
+fn read_claim(row: &sqlx::any::AnyRow, worker: &str) -> Result<Claim, ServiceError> {
+    let key: String = row.try_get(1)?;
+    Ok(Claim {
+        id: row.try_get(0)?,
+        job: JobKey::parse(&key).ok_or_else(|| ServiceError::Corrupt(format!("job key {key:?}")))?,
+        kind: TaskKind::parse(&row.try_get::<String, _>(2)?)?,
+        first_sample: u32::try_from(row.try_get::<i64, _>(3)?).map_err(|e| ServiceError::Corrupt(e.to_string()))?,
+        samples: u32::try_from(row.try_get::<i64, _>(4)?).map_err(|e| ServiceError::Corrupt(e.to_string()))?,
+        attempt: row.try_get(5)?,
+        scene: u64::try_from(row.try_get::<Option<i64>, _>(6)?.unwrap_or(0))
+            .map_err(|e| ServiceError::Corrupt(e.to_string()))?,
+        worker: worker.to_string(),
+    })
+}
+
 /// The queue over a [`Database`].
 #[derive(Clone, Debug)]
 pub struct JobQueue {
@@ -115,25 +132,39 @@ impl JobQueue {
              ORDER BY id LIMIT 1{lock}) \
              RETURNING id, job_key, kind, first_sample, samples, attempts, scene"
         );
-        let row = sqlx::query(&sql).bind(worker).bind(now + lease_ms).bind(now).fetch_optional(&self.db.pool).await?;
+        // One transaction: the task and its job change together, or neither does.
+        let mut tx = self.db.pool.begin().await?;
+        let row = sqlx::query(&sql).bind(worker).bind(now + lease_ms).bind(now).fetch_optional(&mut *tx).await?;
         let Some(row) = row else { return Ok(None) };
-        let key: String = row.try_get(1)?;
-        let claim = Claim {
-            id: row.try_get(0)?,
-            job: JobKey::parse(&key).ok_or_else(|| ServiceError::Corrupt(format!("job key {key:?}")))?,
-            kind: TaskKind::parse(&row.try_get::<String, _>(2)?)?,
-            first_sample: row.try_get::<i64, _>(3)? as u32,
-            samples: row.try_get::<i64, _>(4)? as u32,
-            attempt: row.try_get(5)?,
-            scene: row.try_get::<Option<i64>, _>(6)?.unwrap_or(0) as u64,
-            worker: worker.to_string(),
-        };
-        sqlx::query("UPDATE jobs SET state = 'running', started_ms = $1 WHERE key = $2 AND state = 'queued'")
-            .bind(now)
-            .bind(key)
-            .execute(&self.db.pool)
-            .await?;
-        Ok(Some(claim))
+        let (id, key): (i64, String) = (row.try_get(0)?, row.try_get(1)?);
+        let claim = read_claim(&row, worker);
+        match &claim {
+            Ok(_) => {
+                sqlx::query("UPDATE jobs SET state = 'running', started_ms = $1 WHERE key = $2 AND state = 'queued'")
+                    .bind(now)
+                    .bind(key)
+                    .execute(&mut *tx)
+                    .await?;
+            }
+            Err(e) => {
+                // A row no worker can read fails with its job, instead of being claimed again
+                // every lease.
+                let why = "The job's record is damaged and cannot be worked on";
+                tracing::error!(task = id, error = %e, "failing an unreadable task");
+                sqlx::query("UPDATE tasks SET state = 'failed', lease_until_ms = NULL WHERE id = $1")
+                    .bind(id)
+                    .execute(&mut *tx)
+                    .await?;
+                sqlx::query("UPDATE jobs SET state = 'failed', error = $1, finished_ms = $2 WHERE key = $3")
+                    .bind(why)
+                    .bind(now)
+                    .bind(key)
+                    .execute(&mut *tx)
+                    .await?;
+            }
+        }
+        tx.commit().await?;
+        claim.map(Some)
     }
 
     /// Extends the lease by `lease_ms` and records `progress`; false if the lease was lost

@@ -6,10 +6,19 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
+use axum::extract::ConnectInfo;
+use axum::http::Request;
+use axum::Router;
+use hyper::body::Incoming;
+use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use hyper_util::server::conn::auto::Builder;
+use hyper_util::server::graceful::GracefulShutdown;
+use hyper_util::service::TowerToHyperService;
 use rtd_denoise::Denoiser;
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
+use tower::ServiceExt;
 
 use crate::api::{router, AppState};
 use crate::database::now_ms;
@@ -76,20 +85,58 @@ pub async fn start_server(
         signal.await;
         let _ = stop_on_signal.send(true);
     });
-    let app = router(state.clone()).into_make_service_with_connect_info::<SocketAddr>();
+    let app = router(state.clone());
     let mut http_stopped = stopped.clone();
     let task = tokio::spawn(async move {
-        let graceful = async move {
+        let stop = async move {
             let _ = http_stopped.wait_for(|s| *s).await;
             state.stop_accepting();
         };
-        let served = axum::serve(listener, app).with_graceful_shutdown(graceful).await;
+        serve_http(listener, app, config.upload_timeout, stop).await;
         for h in handles {
             let _ = h.await;
         }
-        served.map_err(|e| ServiceError::io("the HTTP server failed", e))
+        Ok(())
     });
     Ok(RunningServer { addr, stop, task })
+}
+
+/// Serves `app` on `listener` until `stop` completes, then lets the requests in flight
+/// finish. Each connection is HTTP/1.1 through hyper, with `header_timeout` to send a
+/// request's headers (a client that trickles them in, as in slowloris, is cut off); the
+/// router sees the peer's address as [`ConnectInfo`].
+async fn serve_http(listener: TcpListener, app: Router, header_timeout: Duration, stop: impl Future<Output = ()>) {
+    let graceful = GracefulShutdown::new();
+    let mut builder = Builder::new(TokioExecutor::new()).http1_only();
+    builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
+    tokio::pin!(stop);
+    loop {
+        let (stream, peer) = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok(a) => a,
+                Err(e) => {
+                    // Out of file descriptors and the like: wait for some to be freed.
+                    tracing::warn!(error = %e, "cannot accept a connection");
+                    tokio::time::sleep(Duration::from_millis(100)).await;
+                    continue;
+                }
+            },
+            _ = &mut stop => break,
+        };
+        let service = app.clone().map_request(move |mut req: Request<Incoming>| {
+            req.extensions_mut().insert(ConnectInfo(peer));
+            req
+        });
+        let conn = builder.serve_connection(TokioIo::new(stream), TowerToHyperService::new(service)).into_owned();
+        let conn = graceful.watch(conn);
+        tokio::spawn(async move {
+            if let Err(e) = conn.await {
+                tracing::debug!(error = %e, "connection ended with an error");
+            }
+        });
+    }
+    drop(listener);
+    graceful.shutdown().await;
 }
 
 /// Runs one worker on `db` until `signal` completes; the task in flight is given back.

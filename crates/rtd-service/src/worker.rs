@@ -2,6 +2,7 @@
 //! timer renews the lease and publishes progress, and stores the result. Workers know nothing
 //! of each other; any number may run against one database.
 
+use std::future::Future;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -18,6 +19,17 @@ use crate::{Database, JobKey, ServiceConfig, ServiceError};
 const HEARTBEAT: Duration = Duration::from_secs(5);
 /// How long storing a result is retried while the database is unreachable.
 const STORE_RETRY: Duration = Duration::from_secs(60);
+/// The longest one call to the database may take before it is abandoned (a connection left
+/// half-open by a network fault can otherwise wait forever). Reading a finishing task's films
+/// or storing a result moves the most data; this leaves them minutes.
+const QUERY_TIMEOUT: Duration = Duration::from_secs(180);
+
+/// `call`, or a timeout error after [`QUERY_TIMEOUT`].
+async fn bounded<T>(call: impl Future<Output = Result<T, ServiceError>>) -> Result<T, ServiceError> {
+    tokio::time::timeout(QUERY_TIMEOUT, call)
+        .await
+        .unwrap_or_else(|_| Err(ServiceError::io("the database did not answer", std::io::ErrorKind::TimedOut.into())))
+}
 
 /// One worker: a loop that takes one task at a time.
 pub struct Worker {
@@ -64,12 +76,12 @@ impl Worker {
         let mut last_beat = None::<tokio::time::Instant>;
         while !*shutdown.borrow() {
             if last_beat.is_none_or(|t| t.elapsed() >= HEARTBEAT) {
-                match self.queue.heartbeat(&self.id, &self.host).await {
+                match bounded(self.queue.heartbeat(&self.id, &self.host)).await {
                     Ok(()) => last_beat = Some(tokio::time::Instant::now()),
                     Err(e) => warn!(worker = %self.id, error = %e, "heartbeat failed"),
                 }
             }
-            let claim = match self.queue.claim(&self.id, self.lease_ms()).await {
+            let claim = match bounded(self.queue.claim(&self.id, self.lease_ms())).await {
                 Ok(c) => c,
                 Err(e) => {
                     warn!(worker = %self.id, error = %e, "cannot reach the queue; retrying");
@@ -103,7 +115,7 @@ impl Worker {
                 format!("The job was given up after {MAX_ATTEMPTS} attempts, each ended by a worker that stopped");
             return self.store_failure(claim, &why).await;
         }
-        let inputs = match self.fetch(claim).await {
+        let inputs = match bounded(self.fetch(claim)).await {
             Ok(i) => i,
             Err(e) => {
                 // The database went away between claim and fetch: give the task back if it
@@ -113,7 +125,7 @@ impl Worker {
             }
         };
         // Fetching may have taken a while (a finishing task reads every range's film).
-        let _ = self.queue.renew(claim, self.lease_ms(), 0.0).await;
+        let _ = bounded(self.queue.renew(claim, self.lease_ms(), 0.0)).await;
         let progress = Arc::new(TaskProgress::default());
         let work = {
             let (claim, progress, denoiser, threads) =
@@ -150,7 +162,7 @@ impl Worker {
             }
             Ok(Ok(output)) => {
                 // Keep the claim alive while storing (the retries below can outlast a lease).
-                let _ = self.queue.renew(claim, self.lease_ms(), 1.0).await;
+                let _ = bounded(self.queue.renew(claim, self.lease_ms(), 1.0)).await;
                 self.store(claim, output).await
             }
             Ok(Err(_)) if stopping => self.release(claim).await,
@@ -172,13 +184,13 @@ impl Worker {
     async fn store(&self, claim: &Claim, output: TaskOutput) -> Outcome {
         let deadline = tokio::time::Instant::now() + STORE_RETRY;
         loop {
-            match self.queue.complete(claim, output.clone()).await {
+            match bounded(self.queue.complete(claim, output.clone())).await {
                 Ok(true) => return Outcome::Completed,
                 Ok(false) => return Outcome::Lost,
                 Err(e) if tokio::time::Instant::now() < deadline => {
                     warn!(worker = %self.id, error = %e, "cannot store the result; retrying");
                     tokio::time::sleep(Duration::from_secs(1)).await;
-                    let _ = self.queue.renew(claim, self.lease_ms(), 1.0).await;
+                    let _ = bounded(self.queue.renew(claim, self.lease_ms(), 1.0)).await;
                 }
                 Err(e) => {
                     warn!(worker = %self.id, error = %e, "giving up storing the result; the lease will run out");
@@ -189,7 +201,7 @@ impl Worker {
     }
 
     async fn store_failure(&self, claim: &Claim, why: &str) -> Outcome {
-        match self.queue.fail(claim, why).await {
+        match bounded(self.queue.fail(claim, why)).await {
             Ok(true) => Outcome::Failed,
             Ok(false) => Outcome::Lost,
             Err(e) => {
@@ -200,7 +212,7 @@ impl Worker {
     }
 
     async fn release(&self, claim: &Claim) -> Outcome {
-        if let Err(e) = self.queue.release(claim).await {
+        if let Err(e) = bounded(self.queue.release(claim)).await {
             warn!(worker = %self.id, error = %e, "cannot give the task back; its lease will run out");
         }
         Outcome::Released

@@ -33,7 +33,7 @@ pub struct ServeArgs {
     /// Uploads and ratings per minute from one client address.
     #[arg(long, default_value_t = 60)]
     pub rate_limit: u32,
-    /// How long an upload may take to arrive.
+    /// How long a request's headers may take to arrive, and then its body (an upload).
     #[arg(long, default_value = "60s", value_parser = parse_duration)]
     pub upload_timeout: Duration,
     /// Samples per pixel in one render range task (a render job splits into ranges).
