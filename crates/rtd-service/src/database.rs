@@ -114,6 +114,13 @@ pub fn now_ms() -> i64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_millis() as i64).unwrap_or(0)
 }
 
+/// Locks job `job`'s row for the rest of `tx`: completions and failures of one job's tasks then
+/// run one at a time (and SQLite takes its write lock here, before any read). Returns the rows
+/// locked: 0 if there is no such job.
+pub(crate) async fn lock_job(tx: &mut sqlx::AnyConnection, job: &str) -> Result<u64, ServiceError> {
+    Ok(sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(job).execute(tx).await?.rows_affected())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

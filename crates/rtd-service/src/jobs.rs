@@ -291,7 +291,7 @@ impl JobStore {
     /// stored is left as it is, so queuing twice queues once. Returns true when it was new.
     pub async fn create_dataset(&self, key: &JobKey, options_json: &str, scenes: &[u64]) -> Result<bool, ServiceError> {
         let mut tx = self.db.pool.begin().await?;
-        if crate::queue::lock_job(&mut tx, key.as_str()).await? == 1 {
+        if crate::database::lock_job(&mut tx, key.as_str()).await? == 1 {
             return Ok(false);
         }
         let row = JobRow { key, kind: JobKind::Dataset, params: options_json, size: (0, 0) };
@@ -368,7 +368,7 @@ impl JobStore {
     /// Stores (or replaces) the rating of job `key`; false if there is no such job.
     pub async fn rate(&self, key: &JobKey, rating: i64, comment: Option<String>) -> Result<bool, ServiceError> {
         let mut tx = self.db.pool.begin().await?;
-        if crate::queue::lock_job(&mut tx, key.as_str()).await? == 0 {
+        if crate::database::lock_job(&mut tx, key.as_str()).await? == 0 {
             return Ok(false);
         }
         sqlx::query(

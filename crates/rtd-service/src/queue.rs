@@ -9,7 +9,7 @@
 
 use sqlx::Row;
 
-use crate::database::{now_ms, Backend, Database};
+use crate::database::{lock_job, now_ms, Backend, Database};
 use crate::jobs::Input;
 use crate::{JobKey, ServiceError};
 
@@ -81,13 +81,6 @@ pub enum TaskOutput {
         /// Image size.
         size: (u32, u32),
     },
-}
-
-/// Locks job `job`'s row for the rest of `tx`: completions and failures of one job's tasks then
-/// run one at a time (and SQLite takes its write lock here, before any read). Returns the rows
-/// locked: 0 if there is no such job.
-pub(crate) async fn lock_job(tx: &mut sqlx::AnyConnection, job: &str) -> Result<u64, ServiceError> {
-    Ok(sqlx::query("UPDATE jobs SET key = key WHERE key = $1").bind(job).execute(tx).await?.rows_affected())
 }
 
 /// The claim a `RETURNING id, job_key, kind, first_sample, samples, attempts, scene` row gives
