@@ -2,7 +2,7 @@
 //! fully convolutionally), plus its [`DenoiserConfig`], which is saved beside the weights.
 
 use burn::config::Config;
-use burn::module::Module;
+use burn::module::{Module, ModuleMapper, Param, ParamId};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
 use burn::nn::PaddingConfig2d;
@@ -10,6 +10,20 @@ use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
+
+/// Renumbers a module's parameters 1, 2, 3, … in traversal order. burn draws a random id for
+/// every parameter, and the ids are written into every record: two identical training runs
+/// would otherwise save model and checkpoint files whose tensors are equal but whose bytes are
+/// not, and a reproduced model could not be checked by its hash.
+struct NumberedParams(u64);
+
+impl ModuleMapper for NumberedParams {
+    fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        let (_, value, mapper) = param.consume();
+        self.0 += 1;
+        Param::from_mapped_value(ParamId::from(self.0), value, mapper)
+    }
+}
 
 /// Network hyper-parameters; serialised as JSON beside the weights so a model file is
 /// self-describing.
@@ -106,7 +120,9 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
-        DenoiserNet { stem, encoders, bottleneck, decoders, output, downsample: MaxPool2dConfig::new([2, 2]).init() }
+        let net =
+            DenoiserNet { stem, encoders, bottleneck, decoders, output, downsample: MaxPool2dConfig::new([2, 2]).init() };
+        net.map(&mut NumberedParams(0))
     }
 
     /// An upper bound on how far (in full-resolution pixels) an input pixel can influence an

@@ -402,7 +402,12 @@ fn checkpoint(
 ) -> Result<(), TrainError> {
     let weights = net.clone().into_record().into_bytes().map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
     save_record(&files.weights, &weights)?;
-    let opt = optim.to_record().into_bytes().map_err(|e| TrainError::msg(&files.optimizer, e.to_string()))?;
+    // burn lays the optimiser's tensors out in its hash map's order, which changes from run to
+    // run; read back, they come in name order, so a second encoding is the same bytes every run.
+    let opt_err = |e: burn::store::RecordError| TrainError::msg(&files.optimizer, e.to_string());
+    let opt = burn::optim::OptimizerRecord::from_bytes(optim.to_record().into_bytes().map_err(opt_err)?)
+        .and_then(|r| r.into_bytes())
+        .map_err(opt_err)?;
     save_record(&files.optimizer, &opt)?;
     let text = serde_json::to_vec(state).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
     save_record(&files.state, &text)
