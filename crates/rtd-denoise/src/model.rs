@@ -120,8 +120,14 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
-        let net =
-            DenoiserNet { stem, encoders, bottleneck, decoders, output, downsample: MaxPool2dConfig::new([2, 2]).init() };
+        let net = DenoiserNet {
+            stem,
+            encoders,
+            bottleneck,
+            decoders,
+            output,
+            downsample: MaxPool2dConfig::new([2, 2]).init(),
+        };
         net.map(&mut NumberedParams(0))
     }
 

@@ -11,6 +11,49 @@ pub fn parent_dir(path: &Path) -> &Path {
     }
 }
 
+/// Temporary files are `.rtd-PID-XXXXXX.tmp`: named after the process writing them, so that
+/// one left by a killed process (`kill -9`, a power cut) can be told from one being written.
+const TEMP_PREFIX: &str = ".rtd-";
+const TEMP_SUFFIX: &str = ".tmp";
+
+fn temp_prefix(pid: u32) -> String {
+    format!("{TEMP_PREFIX}{pid}-")
+}
+
+/// The process id in a temporary file's name, if `name` is one of ours.
+fn temp_owner(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix(TEMP_PREFIX)?.strip_suffix(TEMP_SUFFIX)?;
+    rest.split_once('-')?.0.parse().ok()
+}
+
+/// Removes the temporary files in `dir` left by processes that no longer run (killed while
+/// writing), the first time this process calls it for `dir`: commands call it as they start,
+/// and every atomic write does, so a directory of many files is scanned once, not per write.
+/// Only where process ids can be checked (`/proc`); errors are ignored, as the files are
+/// harmless leftovers.
+pub fn remove_orphans_once(dir: &Path) {
+    static SWEPT: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::new(Vec::new());
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(canonical) = dir.canonicalize() else { return };
+    {
+        let mut swept = SWEPT.lock().unwrap_or_else(|e| e.into_inner());
+        if swept.contains(&canonical) {
+            return;
+        }
+        swept.push(canonical);
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(temp_owner) else { continue };
+        if !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Writes a file atomically and durably: `write` fills a temporary file in the destination's
 /// directory, which is flushed to disk (`fsync`), renamed over `path`, and the directory is
 /// flushed after the rename. On any error the temporary file is removed, so a half-written
@@ -21,9 +64,10 @@ where
     F: FnOnce(&mut std::io::BufWriter<&mut std::fs::File>) -> Result<(), ImageError>,
 {
     let dir = parent_dir(path);
+    remove_orphans_once(dir);
     let mut tmp = tempfile::Builder::new()
-        .prefix(".rtd-")
-        .suffix(".tmp")
+        .prefix(&temp_prefix(std::process::id()))
+        .suffix(TEMP_SUFFIX)
         .tempfile_in(dir)
         .map_err(|e| ImageError::io(path, e))?;
     {
@@ -81,6 +125,24 @@ mod tests {
         assert!(r.is_err());
         assert!(!out.exists());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "temp file left behind");
+    }
+
+    #[test]
+    fn a_killed_writers_temp_file_is_removed_by_the_next_write() {
+        let dir = tempfile::tempdir().unwrap();
+        // A process id that cannot be running (beyond Linux's pid_max), and one that is.
+        let dead = dir.path().join(format!("{}abc123{TEMP_SUFFIX}", temp_prefix(99_999_999)));
+        let alive = dir.path().join(format!("{}abc123{TEMP_SUFFIX}", temp_prefix(std::process::id())));
+        let other = dir.path().join(".rtd-notes.tmp");
+        for f in [&dead, &alive, &other] {
+            std::fs::write(f, b"partial").unwrap();
+        }
+        write_bytes_atomic(&dir.path().join("x.bin"), b"new").unwrap();
+        assert!(!dead.exists(), "a dead process's temporary file is removed");
+        assert!(alive.exists(), "a running process's temporary file is kept");
+        assert!(other.exists(), "a file that is not one of ours is kept");
+        assert_eq!(temp_owner(".rtd-42-Xy9.tmp"), Some(42));
+        assert_eq!(temp_owner(".rtd-x-Xy9.tmp"), None);
     }
 
     #[test]

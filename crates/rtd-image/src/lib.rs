@@ -23,7 +23,7 @@ pub mod metrics;
 mod progress;
 mod sniff;
 
-pub use atomic::{parent_dir, write_atomic, write_bytes_atomic, write_json};
+pub use atomic::{parent_dir, remove_orphans_once, write_atomic, write_bytes_atomic, write_json};
 pub use error::ImageError;
 pub use exr_io::{encode_exr, read_exr, write_exr, Layers};
 pub use format::ImageFormat;

@@ -14,6 +14,8 @@ pub fn check_output(path: &Path) -> anyhow::Result<ImageFormat> {
     if path.is_dir() {
         bail!("{}: is a directory", path.display());
     }
+    // What an earlier run killed mid-write left beside the output goes now.
+    rtd_image::remove_orphans_once(dir);
     tempfile::Builder::new()
         .prefix(".rtd-check-")
         .tempfile_in(dir)
