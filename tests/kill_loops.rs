@@ -213,13 +213,21 @@ fn training_killed_again_and_again_resumes_to_the_same_model() {
     let whole = root.path().join("whole");
     let w = args(&whole);
     let span = run_to_end(&w.iter().map(String::as_str).collect::<Vec<_>>());
-    let model_files = ["model.bpk", "model.json", "checkpoint.bpk", "optimizer.bpk"];
+    let model_files =
+        ["model.bpk", "model.json", "checkpoints/00000012/weights.bpk", "checkpoints/00000012/optimizer.bpk"];
     let after_kill = |dir: &Path| {
         let state = dir.join("state.json");
         if state.exists() {
             let s: serde_json::Value =
                 serde_json::from_slice(&std::fs::read(&state).unwrap()).expect("state.json is torn");
-            assert!(s["step"].as_u64().unwrap() <= 12);
+            let step = s["step"].as_u64().unwrap();
+            assert!(step <= 12);
+            // The checkpoint it names is whole (a kill between its files and state.json
+            // used to pair one step's weights with another's state).
+            let named = dir.join(format!("checkpoints/{step:08}"));
+            for f in ["weights.bpk", "optimizer.bpk"] {
+                assert!(named.join(f).exists(), "state.json names step {step}, whose {f} is missing");
+            }
         }
     };
     let finished = |dir: &Path| {
@@ -227,6 +235,9 @@ fn training_killed_again_and_again_resumes_to_the_same_model() {
             let (a, b) = (std::fs::read(whole.join(f)).unwrap(), std::fs::read(dir.join(f)).unwrap());
             assert!(a == b, "{f} after kills and resumes differs from the uninterrupted run's");
         }
+        let kept: Vec<_> =
+            std::fs::read_dir(dir.join("checkpoints")).unwrap().flatten().map(|e| e.file_name()).collect();
+        assert_eq!(kept.len(), 1, "only the last checkpoint is kept: {kept:?}");
         assert!(temp_files(dir).is_empty(), "{:?}", temp_files(dir));
     };
     // Half as many kills as the other loops: each run builds a network before it trains.

@@ -114,9 +114,13 @@ fn quick_training_lowers_the_loss_and_writes_a_model_and_curves() {
     let (early, late) =
         (losses[..k].iter().sum::<f64>() / k as f64, losses[losses.len() - k..].iter().sum::<f64>() / k as f64);
     assert!(late < early * 0.95, "loss did not go down: {early} → {late}");
-    for f in ["model.bpk", "model.json", "curves.png", "checkpoint.bpk", "optimizer.bpk"] {
+    let last = format!("checkpoints/{:08}", state["step"].as_u64().unwrap());
+    for f in ["model.bpk", "model.json", "curves.png", &format!("{last}/weights.bpk"), &format!("{last}/optimizer.bpk")]
+    {
         assert!(out.join(f).exists(), "{f}");
     }
+    let kept = std::fs::read_dir(out.join("checkpoints")).unwrap().count();
+    assert_eq!(kept, 1, "only the last checkpoint is kept");
     // The trained model loads and denoises.
     assert!(rtd::denoise::Denoiser::load(&out.join("model.bpk")).is_ok());
 }
@@ -153,7 +157,7 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     // Every file is the same bytes, so a reproduced model can be checked by its hash (burn's
     // random parameter ids and hash-map order used to change the headers and the layout).
     let bytes = |d: &str, f: &str| std::fs::read(dir.path().join(d).join(f)).unwrap();
-    for f in ["model.bpk", "model.json", "checkpoint.bpk", "optimizer.bpk"] {
+    for f in ["model.bpk", "model.json", "checkpoints/00000006/weights.bpk", "checkpoints/00000006/optimizer.bpk"] {
         assert!(bytes("a", f) == bytes("b", f), "two identical runs wrote different {f}");
         assert!(bytes("a", f) == bytes("c", f), "the resumed run wrote a different {f}");
     }

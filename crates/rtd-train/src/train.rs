@@ -106,19 +106,63 @@ pub struct TrainState {
     pub losses: Vec<f32>,
 }
 
-/// Files of a training run in `out`.
+/// Files of a training run in `out`: `state.json`, and the checkpoint it names,
+/// `checkpoints/STEP/{weights,optimizer}.bpk`. A checkpoint is written whole before
+/// `state.json` names it, and older ones are removed after, so a kill at any moment leaves
+/// `state.json` naming a complete checkpoint of its own step.
 struct RunFiles {
+    out: PathBuf,
     state: PathBuf,
-    weights: PathBuf,
-    optimizer: PathBuf,
 }
 
 impl RunFiles {
     fn new(out: &Path) -> Self {
-        RunFiles {
-            state: out.join("state.json"),
-            weights: out.join("checkpoint.bpk"),
-            optimizer: out.join("optimizer.bpk"),
+        RunFiles { out: out.to_path_buf(), state: out.join("state.json") }
+    }
+
+    fn checkpoints(&self) -> PathBuf {
+        self.out.join("checkpoints")
+    }
+
+    /// The folder of the checkpoint after `step` steps.
+    fn checkpoint(&self, step: u64) -> PathBuf {
+        self.checkpoints().join(format!("{step:08}"))
+    }
+
+    /// The weights after `step` steps (or a run's from before checkpoint folders, which kept
+    /// one `checkpoint.bpk`).
+    fn weights(&self, step: u64) -> PathBuf {
+        let path = self.checkpoint(step).join("weights.bpk");
+        let legacy = self.out.join("checkpoint.bpk");
+        if !path.exists() && legacy.exists() {
+            return legacy;
+        }
+        path
+    }
+
+    /// The optimiser state after `step` steps (or a legacy run's `optimizer.bpk`).
+    fn optimizer(&self, step: u64) -> PathBuf {
+        let path = self.checkpoint(step).join("optimizer.bpk");
+        let legacy = self.out.join("optimizer.bpk");
+        if !path.exists() && legacy.exists() {
+            return legacy;
+        }
+        path
+    }
+
+    /// Removes every checkpoint but the one after `step` steps, and a legacy one (best effort:
+    /// a leftover only takes room).
+    fn remove_all_but(&self, step: u64) {
+        let keep = self.checkpoint(step);
+        if let Ok(entries) = std::fs::read_dir(self.checkpoints()) {
+            for e in entries.flatten() {
+                if e.path() != keep {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+        for legacy in ["checkpoint.bpk", "optimizer.bpk"] {
+            let _ = std::fs::remove_file(self.out.join(legacy));
         }
     }
 }
@@ -261,14 +305,12 @@ fn start_or_resume(files: &RunFiles, options: &TrainOptions, resume: bool, devic
     if state.options != *options {
         return Err(TrainError::msg(&files.state, "was written with other training options"));
     }
-    let record = ModuleRecord::load(&files.weights).map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
-    let net = options
-        .config
-        .init(device)
-        .try_load_record(record)
-        .map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
-    let optim_record = burn::optim::OptimizerRecord::load(&files.optimizer)
-        .map_err(|e| TrainError::msg(&files.optimizer, e.to_string()))?;
+    let (weights, optimizer) = (files.weights(state.step), files.optimizer(state.step));
+    let record = ModuleRecord::load(&weights).map_err(|e| TrainError::msg(&weights, e.to_string()))?;
+    let net =
+        options.config.init(device).try_load_record(record).map_err(|e| TrainError::msg(&weights, e.to_string()))?;
+    let optim_record =
+        burn::optim::OptimizerRecord::load(&optimizer).map_err(|e| TrainError::msg(&optimizer, e.to_string()))?;
     let optim = AdamConfig::new().init().load_record(optim_record);
     Ok(Run { net, optim, state })
 }
@@ -393,24 +435,31 @@ fn epoch_line(r: &EpochRecord) -> String {
     format!("step {:>6}  loss {:.4}  {validation}  {:.1} crops/s", r.step, r.train_loss, r.crops_per_s)
 }
 
-/// Writes weights, optimiser state and `state.json`, each atomically, state last.
+/// Writes the checkpoint after `state.step` steps (weights and optimiser state, each
+/// atomically, into their own folder), then `state.json` naming it, then removes the older
+/// checkpoints: `state.json` always names a whole checkpoint of its own step.
 fn checkpoint(
     files: &RunFiles,
     net: &DenoiserNet,
     optim: &ModuleOptimizer,
     state: &TrainState,
 ) -> Result<(), TrainError> {
-    let weights = net.clone().into_record().into_bytes().map_err(|e| TrainError::msg(&files.weights, e.to_string()))?;
-    save_record(&files.weights, &weights)?;
+    let dir = files.checkpoint(state.step);
+    std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
+    let (weights_path, optimizer_path) = (dir.join("weights.bpk"), dir.join("optimizer.bpk"));
+    let weights = net.clone().into_record().into_bytes().map_err(|e| TrainError::msg(&weights_path, e.to_string()))?;
+    save_record(&weights_path, &weights)?;
     // burn lays the optimiser's tensors out in its hash map's order, which changes from run to
     // run; read back, they come in name order, so a second encoding is the same bytes every run.
-    let opt_err = |e: burn::store::RecordError| TrainError::msg(&files.optimizer, e.to_string());
+    let opt_err = |e: burn::store::RecordError| TrainError::msg(&optimizer_path, e.to_string());
     let opt = burn::optim::OptimizerRecord::from_bytes(optim.to_record().into_bytes().map_err(opt_err)?)
         .and_then(|r| r.into_bytes())
         .map_err(opt_err)?;
-    save_record(&files.optimizer, &opt)?;
+    save_record(&optimizer_path, &opt)?;
     let text = serde_json::to_vec(state).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
-    save_record(&files.state, &text)
+    save_record(&files.state, &text)?;
+    files.remove_all_but(state.step);
+    Ok(())
 }
 
 /// Writes the trained network as `model.bpk` (weights) + `model.json` (`config`) into `out`.
