@@ -75,6 +75,7 @@ impl SceneView {
         if scene.triangles.is_empty() {
             warnings.push("scene has no triangles".into());
         }
+        warnings.extend(scene.precision_warning());
         let scene = RenderScene::new(scene);
         Ok(SceneView { path: path.to_path_buf(), scene, camera, load_s, warnings })
     }

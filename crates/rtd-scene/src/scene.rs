@@ -121,6 +121,28 @@ impl Scene {
         b
     }
 
+    /// A warning when the geometry lies so far from the origin, for its size, that `f32`
+    /// positions cannot hold it: the spacing of `f32` values at the farthest coordinate is
+    /// over 1/10000 of the scene's extent (1e4 from the origin for a box of 2 units).
+    /// Intersections then err by that much, and at worst whole objects collapse.
+    pub fn precision_warning(&self) -> Option<String> {
+        let b = self.bounds();
+        let extent = (b.max - b.min).max_element();
+        let far = b.min.abs().max(b.max.abs()).max_element();
+        if !(extent > 0.0 && far.is_finite()) {
+            return None;
+        }
+        // Spacing of f32 values at `far`: 2^(exponent − 23).
+        let step = f32::from_bits(far.to_bits() & 0x7f80_0000) * f32::EPSILON;
+        (step > extent * 1e-4).then(|| {
+            format!(
+                "geometry lies up to {far:.3e} from the origin, where positions are {step:.1e} apart \
+                 ({:.2}% of the scene's {extent:.3e} extent); move the scene nearer the origin",
+                100.0 * step / extent
+            )
+        })
+    }
+
     /// Number of triangles whose material emits.
     pub fn emissive_triangle_count(&self) -> usize {
         self.triangles.iter().filter(|t| self.materials[t.material as usize].is_emissive()).count()
