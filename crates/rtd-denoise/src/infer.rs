@@ -116,11 +116,12 @@ impl Denoiser {
             return Err(DenoiseError::model(name, format!("implausible prong {prong} or bottleneck blocks {blocks}")));
         }
         let device = Device::flex();
-        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights))
+        // burn's record reader is fenced as the other parsers are: a model file is a stranger's too.
+        let record = rtd_image::contain_panic(|| ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights)))
+            .map_err(|e| DenoiseError::model(name, e))?
             .map_err(|e| DenoiseError::model(name, format!("corrupt weights: {e}")))?;
-        let net = config
-            .init(&device)
-            .try_load_record(record)
+        let net = rtd_image::contain_panic(|| config.init(&device).try_load_record(record))
+            .map_err(|e| DenoiseError::model(name, e))?
             .map_err(|e| DenoiseError::model(name, format!("weights do not match the config: {e}")))?;
         Ok(Self::from_net(net, config, device, name))
     }

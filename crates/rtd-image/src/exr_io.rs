@@ -159,7 +159,10 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
         return Err(ImageError::missing(path));
     }
     check_exr_headers(path)?;
-    let image = read_all_flat_layers_from_file(path).map_err(|e| ImageError::decode(path, e))?;
+    // The exr crate panics on some malformed files (found by fuzzing): fenced.
+    let image = crate::contain_panic(|| read_all_flat_layers_from_file(path))
+        .map_err(|e| ImageError::decode(path, e))?
+        .map_err(|e| ImageError::decode(path, e))?;
     let first = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;
     let (w, h) = (first.size.width(), first.size.height());
     let mut out = Layers::new(w as u32, h as u32);
@@ -194,7 +197,9 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
 /// Refuses, from the headers alone, an EXR whose parts are empty, wider or taller than
 /// [`MAX_DIMENSION`], or larger than [`MAX_PIXELS`] together.
 fn check_exr_headers(path: &Path) -> Result<(), ImageError> {
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| ImageError::decode(path, e))?;
+    let meta = crate::contain_panic(|| exr::meta::MetaData::read_from_file(path, false))
+        .map_err(|e| ImageError::decode(path, e))?
+        .map_err(|e| ImageError::decode(path, e))?;
     crate::sniff::check_exr_parts(path, &meta).map(|_| ())
 }
 

@@ -2,7 +2,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use crate::{write_bytes_atomic, HdrImage, ImageError, ImageFormat, MAX_DIMENSION};
+use crate::{write_bytes_atomic, HdrImage, ImageError, ImageFormat};
 
 /// How linear radiance is mapped into [0,1] before sRGB encoding.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -82,16 +82,16 @@ pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
     let reader = image::ImageReader::open(path).map_err(|e| ImageError::io(path, e))?;
     let reader = reader.with_guessed_format().map_err(|e| ImageError::io(path, e))?;
     let (w, h) = reader.into_dimensions().map_err(|e| ImageError::decode(path, e))?;
-    if w == 0 || h == 0 || w > MAX_DIMENSION || h > MAX_DIMENSION {
-        return Err(ImageError::invalid(path, format!("image size {w}x{h} is outside 1..={MAX_DIMENSION}")));
-    }
-    let decoded = image::ImageReader::open(path)
+    // Both sides and the pixel count, from the header, before anything is decoded.
+    crate::check_image_size(path, w as usize, h as usize)?;
+    let reader = image::ImageReader::open(path)
         .map_err(|e| ImageError::io(path, e))?
         .with_guessed_format()
-        .map_err(|e| ImageError::io(path, e))?
-        .decode()
+        .map_err(|e| ImageError::io(path, e))?;
+    // Fenced as the other parsers are: the image is a stranger's.
+    let decoded = crate::contain_panic(|| reader.decode().map(|d| d.to_rgb8()))
         .map_err(|e| ImageError::decode(path, e))?
-        .to_rgb8();
+        .map_err(|e| ImageError::decode(path, e))?;
     let pixels = decoded
         .pixels()
         .map(|p| {

@@ -20,6 +20,7 @@ mod hdr;
 mod layer;
 mod ldr;
 pub mod metrics;
+mod parser_guard;
 mod progress;
 mod sniff;
 
@@ -30,6 +31,7 @@ pub use format::ImageFormat;
 pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
+pub use parser_guard::contain_panic;
 pub use progress::{Progress, Quiet};
 pub use sniff::{check_image_size, read_image_header, ImageHeader};
 

@@ -69,10 +69,16 @@ struct GltfFile {
 
 /// Reads, parses and validates a glTF file and loads its buffers and images.
 fn read_gltf(path: &Path) -> Result<GltfFile, SceneError> {
-    let gltf_err = |stage: &'static str| move |source| SceneError::Gltf { path: path.to_path_buf(), stage, source };
     let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+    // The gltf crate panics on some malformed files (found by fuzzing): fenced.
+    rtd_image::contain_panic(|| parse_gltf(path, &bytes)).map_err(|e| SceneError::new(path, e))?
+}
+
+/// [`read_gltf`]'s parsing of `bytes`, read from `path`.
+fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<GltfFile, SceneError> {
+    let gltf_err = |stage: &'static str| move |source| SceneError::Gltf { path: path.to_path_buf(), stage, source };
     // Check required extensions before validation so the error can name the extension.
-    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_err("malformed glTF"))?;
+    let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(gltf_err("malformed glTF"))?;
     if let Some(ext) = raw.document.extensions_required().find(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
         return Err(SceneError::UnsupportedGltfExtension {
             path: path.to_path_buf(),
@@ -80,7 +86,7 @@ fn read_gltf(path: &Path) -> Result<GltfFile, SceneError> {
             supported: SUPPORTED_GLTF_EXTENSIONS,
         });
     }
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(&bytes).map_err(gltf_err("invalid glTF"))?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(gltf_err("invalid glTF"))?;
     check_buffer_views(&document, path)?;
     let base = path.parent();
     let buffers = gltf::import_buffers(&document, base, blob).map_err(gltf_err("cannot load buffers"))?;

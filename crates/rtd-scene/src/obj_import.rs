@@ -83,13 +83,17 @@ fn parse_obj(path: &Path) -> Result<ObjContents, SceneError> {
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
     let mut reader = std::io::BufReader::new(file);
-    tobj::load_obj_buf(&mut reader, &opts, |mtl| {
-        let full = match path.parent() {
-            Some(parent) => parent.join(mtl),
-            None => mtl.to_path_buf(),
-        };
-        tobj::load_mtl(full)
+    // tobj panics on some malformed OBJ and MTL lines (found by fuzzing): fenced.
+    rtd_image::contain_panic(|| {
+        tobj::load_obj_buf(&mut reader, &opts, |mtl| {
+            let full = match path.parent() {
+                Some(parent) => parent.join(mtl),
+                None => mtl.to_path_buf(),
+            };
+            tobj::load_mtl(full)
+        })
     })
+    .map_err(|e| SceneError::new(path, e))?
     .map_err(|source| SceneError::Obj { path: path.to_path_buf(), source })
 }
 

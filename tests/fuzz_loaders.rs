@@ -1,0 +1,384 @@
+//! Mutation fuzzing of every loader that reads a stranger's bytes, on the stable toolchain: an
+//! in-process harness whose mutations are drawn through `arbitrary` from a seeded generator,
+//! starting from small valid files it writes itself. A crash is a panic, a run over 10 s on
+//! one input, or an allocation that would take the process past 2 GiB (refused by the
+//! allocator below, which aborts the run). Found crashes are kept in
+//! `tests/fuzz-regressions/TARGET/` and replayed first, every run.
+//!
+//! `RTD_FUZZ_SECS` sets the seconds per target (default 8, as CI runs it); `RTD_FUZZ_SEED` the
+//! generator's seed; `RTD_FUZZ_TARGETS` a comma-separated subset. Each target prints its
+//! executions; RELIABILITY.md records the long campaigns.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use arbitrary::Unstructured;
+use base64::Engine;
+
+/// The memory bound of a fuzz run: allocations past it fail (and the run aborts).
+const MEMORY_LIMIT: usize = 2 << 30;
+/// The longest one input may take.
+const TIME_LIMIT: Duration = Duration::from_secs(10);
+
+/// The system allocator, refusing what would take the live total past [`MEMORY_LIMIT`].
+struct Bounded;
+
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Bounded {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size() > MEMORY_LIMIT {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+            return std::ptr::null_mut();
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Bounded = Bounded;
+
+/// One loader under test: its name, the file name its input is written to, and the call.
+struct Target {
+    name: &'static str,
+    file: &'static str,
+    load: fn(&Path, &[u8]),
+}
+
+fn targets() -> Vec<Target> {
+    vec![
+        Target { name: "gltf", file: "scene.gltf", load: |p, _| drop(rtd::scene::load_scene(p)) },
+        Target { name: "glb", file: "scene.glb", load: |p, _| drop(rtd::scene::load_scene(p)) },
+        Target { name: "obj", file: "scene.obj", load: |p, _| drop(rtd::scene::load_scene(p)) },
+        Target {
+            name: "mtl",
+            file: "scene.mtl",
+            load: |p, _| drop(rtd::scene::load_scene(&p.with_file_name("uses-mtl.obj"))),
+        },
+        Target { name: "exr", file: "image.exr", load: |p, _| drop(rtd::image::read_exr(p)) },
+        Target { name: "png", file: "image.png", load: |p, _| drop(rtd::image::read_ldr(p)) },
+        Target { name: "jpeg", file: "image.jpg", load: |p, _| drop(rtd::image::read_ldr(p)) },
+        Target {
+            name: "model",
+            file: "model.bpk",
+            load: |_, bytes| drop(rtd::denoise::Denoiser::from_bytes(MODEL_JSON, bytes.to_vec(), "fuzz")),
+        },
+        Target {
+            name: "upload",
+            file: "upload.bin",
+            load: |p, bytes| {
+                // What the service does with an upload's bytes before queuing it.
+                let _ = rtd::image::read_image_header(p, bytes);
+                let _ = rtd::service::check_scene(bytes);
+            },
+        },
+    ]
+}
+
+const MODEL_JSON: &str = include_str!("../models/rtd-denoiser.json");
+
+/// Small valid inputs for `target`, written by the harness (and any kept regressions).
+fn corpus(target: &str, dir: &Path) -> Vec<Vec<u8>> {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let cornell = std::fs::read_to_string(repo.join("scenes/cornell-box.gltf")).unwrap();
+    let mut seeds = match target {
+        "gltf" => vec![cornell.clone().into_bytes(), textured_gltf(&cornell, dir)],
+        "glb" => vec![glb(&cornell)],
+        "obj" => vec![OBJ.as_bytes().to_vec()],
+        "mtl" => vec![MTL.as_bytes().to_vec()],
+        "exr" => vec![exr(dir, &["R", "G", "B"]), exr(dir, &["R", "G", "B", "albedo.R", "albedo.G", "albedo.B"])],
+        "png" => vec![ldr(image::ImageFormat::Png), tiny_png()],
+        "jpeg" => vec![ldr(image::ImageFormat::Jpeg)],
+        "model" => vec![std::fs::read(repo.join("models/rtd-denoiser.bpk")).unwrap()],
+        "upload" => vec![tiny_png(), ldr(image::ImageFormat::Jpeg), exr(dir, &["R", "G", "B"]), glb(&cornell)],
+        _ => unreachable!(),
+    };
+    let kept = repo.join("tests/fuzz-regressions").join(target);
+    if let Ok(entries) = std::fs::read_dir(kept) {
+        seeds.extend(entries.flatten().map(|e| std::fs::read(e.path()).unwrap()));
+    }
+    seeds
+}
+
+const OBJ: &str = "mtllib scene.mtl\no box\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
+usemtl red\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/1/1\n";
+const MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\nKs 0.04 0.04 0.04\nNs 20\nKe 0 0 0\nd 1\nNi 1.5\nillum 2\n";
+
+fn tiny_png() -> Vec<u8> {
+    let img = image::RgbImage::from_fn(2, 2, |x, y| image::Rgb([(x * 200) as u8, (y * 200) as u8, 90]));
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    out.into_inner()
+}
+
+fn ldr(format: image::ImageFormat) -> Vec<u8> {
+    let img = image::RgbImage::from_fn(16, 12, |x, y| image::Rgb([(x * 15) as u8, (y * 20) as u8, 128]));
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, format).unwrap();
+    out.into_inner()
+}
+
+fn exr(dir: &Path, channels: &[&str]) -> Vec<u8> {
+    let mut layers = rtd::image::Layers::new(8, 4);
+    for (i, c) in channels.iter().enumerate() {
+        layers.push(*c, (0..32).map(|k| (k * (i + 1)) as f32 / 32.0).collect());
+    }
+    rtd::image::encode_exr(&dir.join("seed.exr"), &layers).unwrap()
+}
+
+/// The Cornell box with a 2×2 PNG texture embedded as a data URI on its first material.
+fn textured_gltf(cornell: &str, _dir: &Path) -> Vec<u8> {
+    let mut doc: serde_json::Value = serde_json::from_str(cornell).unwrap();
+    let png = base64::engine::general_purpose::STANDARD.encode(tiny_png());
+    doc["images"] = serde_json::json!([{ "uri": format!("data:image/png;base64,{png}") }]);
+    doc["textures"] = serde_json::json!([{ "source": 0 }]);
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = serde_json::json!({ "index": 0 });
+    serde_json::to_vec(&doc).unwrap()
+}
+
+/// The Cornell box as a binary .glb: its data-URI buffer moved into the BIN chunk.
+fn glb(cornell: &str) -> Vec<u8> {
+    let mut doc: serde_json::Value = serde_json::from_str(cornell).unwrap();
+    let uri = doc["buffers"][0]["uri"].as_str().unwrap().to_string();
+    let mut bin = base64::engine::general_purpose::STANDARD.decode(uri.split_once(',').unwrap().1).unwrap();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let mut js = serde_json::to_vec(&doc).unwrap();
+    while js.len() % 4 != 0 {
+        js.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend(((28 + js.len() + bin.len()) as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    out
+}
+
+/// A fixed-seed xorshift: the bytes `arbitrary` draws each mutation from.
+struct Entropy(u64);
+
+impl Entropy {
+    fn bytes(&mut self, n: usize) -> Vec<u8> {
+        (0..n)
+            .map(|_| {
+                self.0 ^= self.0 << 13;
+                self.0 ^= self.0 >> 7;
+                self.0 ^= self.0 << 17;
+                (self.0 >> 24) as u8
+            })
+            .collect()
+    }
+}
+
+/// Values that break parsers: boundaries of integer widths, float specials, huge counts.
+const INTERESTING: &[&[u8]] = &[
+    b"0",
+    b"-1",
+    b"1e38",
+    b"-1e38",
+    b"NaN",
+    b"inf",
+    b"4294967295",
+    b"2147483648",
+    b"65536",
+    b"1e400",
+    b"\"\"",
+    b"null",
+    b"[]",
+    b"{}",
+    b"\xff\xff\xff\xff",
+    b"\x00\x00\x00\x00",
+    b"\x7f\xff\xff\xff",
+    b"\x00\x00\x80\x7f",
+];
+
+/// One input: a corpus entry with 1–8 mutations drawn from `u`.
+fn mutate(seeds: &[Vec<u8>], u: &mut Unstructured) -> arbitrary::Result<Vec<u8>> {
+    let mut data = u.choose(seeds)?.clone();
+    for _ in 0..u.int_in_range(1..=8u8)? {
+        let len = data.len().max(1);
+        let at = u.int_in_range(0..=len - 1)?;
+        match u.int_in_range(0..=7u8)? {
+            0 if !data.is_empty() => data[at] ^= 1 << u.int_in_range(0..=7u8)?,
+            1 if !data.is_empty() => data[at] = u.arbitrary()?,
+            2 => {
+                let v = *u.choose(INTERESTING)?;
+                let end = (at + v.len()).min(data.len());
+                data.splice(at.min(data.len())..end, v.iter().copied());
+            }
+            3 => {
+                let n = u.int_in_range(1..=16usize)?;
+                let bytes: Vec<u8> = (0..n).map(|_| u.arbitrary()).collect::<arbitrary::Result<_>>()?;
+                data.splice(at.min(data.len())..at.min(data.len()), bytes);
+            }
+            4 => {
+                let end = (at + u.int_in_range(1..=64usize)?).min(data.len());
+                data.drain(at.min(end)..end);
+            }
+            5 => data.truncate(at),
+            6 => {
+                // Duplicate a span elsewhere (repeats chunks, counts, tags).
+                let end = (at + u.int_in_range(1..=64usize)?).min(data.len());
+                let span = data[at.min(end)..end].to_vec();
+                let to = u.int_in_range(0..=data.len())?;
+                data.splice(to..to, span);
+            }
+            _ => {
+                // Splice in a span of another seed.
+                let other = u.choose(seeds)?;
+                let from = u.int_in_range(0..=other.len().saturating_sub(1))?;
+                let end = (from + u.int_in_range(1..=256usize)?).min(other.len());
+                let to = at.min(data.len());
+                data.splice(to..to, other[from..end].iter().copied());
+            }
+        }
+    }
+    Ok(data)
+}
+
+/// What one target found: executions and the crashing inputs, kept under `target/`.
+struct Campaign {
+    runs: u64,
+    crashes: Vec<(PathBuf, String)>,
+}
+
+fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
+    // A fixed folder, so that the input in flight is still there if the run aborts.
+    let work = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-work").join(target.name);
+    std::fs::create_dir_all(&work).unwrap();
+    std::fs::write(work.join("uses-mtl.obj"), OBJ).unwrap();
+    std::fs::write(work.join("scene.mtl"), MTL).unwrap();
+    let seeds = corpus(target.name, &work);
+    let path = work.join(target.file);
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-crashes").join(target.name);
+    let mut entropy = Entropy((seed ^ (target.name.len() as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)) | 1);
+    let mut campaign = Campaign { runs: 0, crashes: vec![] };
+    let start = Instant::now();
+    // The seeds themselves first (and so every kept regression), then mutations.
+    let mut queue: Vec<Vec<u8>> = seeds.clone();
+    // A loader's panic is a finding, reported below: not printed as it happens.
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    while !queue.is_empty() || start.elapsed().as_secs_f64() < secs {
+        let input = match queue.pop() {
+            Some(i) => i,
+            None => {
+                let raw = entropy.bytes(256);
+                match mutate(&seeds, &mut Unstructured::new(&raw)) {
+                    Ok(i) => i,
+                    Err(_) => continue,
+                }
+            }
+        };
+        std::fs::write(&path, &input).unwrap();
+        let t = Instant::now();
+        let result = std::panic::catch_unwind(|| (target.load)(&path, &input));
+        let took = t.elapsed();
+        campaign.runs += 1;
+        let why = match result {
+            Err(panic) => Some(
+                panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "panic".into()),
+            ),
+            Ok(()) if took > TIME_LIMIT => Some(format!("took {took:?}")),
+            Ok(()) => None,
+        };
+        if let Some(why) = why {
+            std::fs::create_dir_all(&out).unwrap();
+            let kept = out.join(format!("crash-{}", campaign.crashes.len()));
+            std::fs::write(&kept, &input).unwrap();
+            campaign.crashes.push((kept, why));
+        }
+    }
+    std::panic::set_hook(hook);
+    campaign
+}
+
+#[test]
+fn loaders_survive_mutated_input() {
+    let secs: f64 = std::env::var("RTD_FUZZ_SECS").ok().and_then(|s| s.parse().ok()).unwrap_or(8.0);
+    let seed: u64 = std::env::var("RTD_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let only = std::env::var("RTD_FUZZ_TARGETS").ok();
+    let mut failures = Vec::new();
+    for target in targets() {
+        if only.as_ref().is_some_and(|o| !o.split(',').any(|t| t == target.name)) {
+            continue;
+        }
+        let c = fuzz(&target, secs, seed);
+        eprintln!("fuzz {:>6}: {:>8} runs in {secs} s, {} crashes", target.name, c.runs, c.crashes.len());
+        for (input, why) in c.crashes.iter().take(5) {
+            failures.push(format!("{}: {} ({why})", target.name, input.display()));
+        }
+    }
+    assert!(failures.is_empty(), "crashes:\n{}", failures.join("\n"));
+}
+
+/// `RTD_FUZZ_REPLAY=TARGET:FILE` runs one input through its loader without catching a panic,
+/// for its backtrace; without it this test does nothing.
+#[test]
+fn replay_one_input() {
+    let Ok(spec) = std::env::var("RTD_FUZZ_REPLAY") else { return };
+    let (name, file) = spec.split_once(':').expect("TARGET:FILE");
+    let target = targets().into_iter().find(|t| t.name == name).expect("a target name");
+    let work = tempfile::tempdir().unwrap();
+    std::fs::write(work.path().join("uses-mtl.obj"), OBJ).unwrap();
+    let path = work.path().join(target.file);
+    let bytes = std::fs::read(file).unwrap();
+    std::fs::write(&path, &bytes).unwrap();
+    (target.load)(&path, &bytes);
+}
+
+/// Every kept crash, through the command line: a one-line error naming the file, exit 1, and
+/// no panic message.
+#[test]
+fn kept_crashes_give_a_one_line_error_through_the_cli() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz-regressions");
+    let work = tempfile::tempdir().unwrap();
+    let mut seen = 0;
+    for (target, file) in
+        [("gltf", "s.gltf"), ("glb", "s.glb"), ("obj", "s.obj"), ("mtl", "scene.mtl"), ("exr", "c.exr")]
+    {
+        let Ok(entries) = std::fs::read_dir(repo.join(target)) else { continue };
+        for entry in entries.flatten() {
+            let input = work.path().join(file);
+            std::fs::copy(entry.path(), &input).unwrap();
+            std::fs::write(work.path().join("uses-mtl.obj"), OBJ).unwrap();
+            let out = work.path().join("out.exr");
+            let (o, named) = (out.to_str().unwrap(), input.to_str().unwrap());
+            let args: Vec<&str> = match target {
+                "exr" => vec!["denoise", "--color", named, "--guide", named, "-o", o],
+                "mtl" => vec!["guide", work.path().join("uses-mtl.obj").to_str().unwrap().to_owned().leak(), "-o", o],
+                _ => vec!["guide", named, "-o", o],
+            };
+            let run = std::process::Command::new(env!("CARGO_BIN_EXE_rtd")).args(&args).output().unwrap();
+            let err = String::from_utf8_lossy(&run.stderr);
+            let what = format!("{target} {}", entry.path().display());
+            assert!(!err.contains("panicked"), "{what}: {err}");
+            if target == "mtl" {
+                // A bad material library is a warning: the scene still loads.
+                continue;
+            }
+            assert_eq!(run.status.code(), Some(1), "{what}: {err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "{what}: {err}");
+            assert!(err.contains(&*input.to_string_lossy()), "{what}: {err}");
+            seen += 1;
+        }
+    }
+    assert!(seen >= 9, "only {seen} kept crashes were replayed");
+}
