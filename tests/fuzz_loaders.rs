@@ -149,10 +149,10 @@ fn glb(cornell: &str) -> Vec<u8> {
     let mut bin = base64::engine::general_purpose::STANDARD.decode(uri.split_once(',').unwrap().1).unwrap();
     doc["buffers"][0].as_object_mut().unwrap().remove("uri");
     let mut js = serde_json::to_vec(&doc).unwrap();
-    while js.len() % 4 != 0 {
+    while !js.len().is_multiple_of(4) {
         js.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut out = b"glTF".to_vec();
@@ -249,10 +249,25 @@ fn mutate(seeds: &[Vec<u8>], u: &mut Unstructured) -> arbitrary::Result<Vec<u8>>
     Ok(data)
 }
 
-/// What one target found: executions and the crashing inputs, kept under `target/`.
+/// What one target found: executions, the crashing inputs (kept under `target/`), and the
+/// dependency panics that rtd's fence turned into errors.
 struct Campaign {
     runs: u64,
     crashes: Vec<(PathBuf, String)>,
+    contained: u64,
+}
+
+/// Aborts the run when one input has run past [`TIME_LIMIT`] (a hang would otherwise stall CI);
+/// the input stays in the work folder. `busy_since` is 0 between inputs, else the start in ms.
+fn watchdog(busy_since: &'static AtomicUsize, origin: Instant, input: PathBuf) {
+    std::thread::spawn(move || loop {
+        std::thread::sleep(Duration::from_millis(500));
+        let since = busy_since.load(Ordering::Relaxed);
+        if since != 0 && origin.elapsed().as_millis() as usize - since > TIME_LIMIT.as_millis() as usize {
+            eprintln!("fuzz: one input ran past {TIME_LIMIT:?}: {}", input.display());
+            std::process::abort();
+        }
+    });
 }
 
 fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
@@ -265,7 +280,11 @@ fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
     let path = work.join(target.file);
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-crashes").join(target.name);
     let mut entropy = Entropy((seed ^ (target.name.len() as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)) | 1);
-    let mut campaign = Campaign { runs: 0, crashes: vec![] };
+    let mut campaign = Campaign { runs: 0, crashes: vec![], contained: 0 };
+    let contained_before = rtd::image::contained_panics();
+    let busy: &'static AtomicUsize = Box::leak(Box::new(AtomicUsize::new(0)));
+    let origin = Instant::now();
+    watchdog(busy, origin, path.clone());
     let start = Instant::now();
     // The seeds themselves first (and so every kept regression), then mutations.
     let mut queue: Vec<Vec<u8>> = seeds.clone();
@@ -285,7 +304,9 @@ fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
         };
         std::fs::write(&path, &input).unwrap();
         let t = Instant::now();
+        busy.store(origin.elapsed().as_millis() as usize + 1, Ordering::Relaxed);
         let result = std::panic::catch_unwind(|| (target.load)(&path, &input));
+        busy.store(0, Ordering::Relaxed);
         let took = t.elapsed();
         campaign.runs += 1;
         let why = match result {
@@ -307,6 +328,7 @@ fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
         }
     }
     std::panic::set_hook(hook);
+    campaign.contained = rtd::image::contained_panics() - contained_before;
     campaign
 }
 
@@ -321,7 +343,13 @@ fn loaders_survive_mutated_input() {
             continue;
         }
         let c = fuzz(&target, secs, seed);
-        eprintln!("fuzz {:>6}: {:>8} runs in {secs} s, {} crashes", target.name, c.runs, c.crashes.len());
+        eprintln!(
+            "fuzz {:>6}: {:>8} runs in {secs} s, {} crashes, {} dependency panics contained",
+            target.name,
+            c.runs,
+            c.crashes.len(),
+            c.contained
+        );
         for (input, why) in c.crashes.iter().take(5) {
             failures.push(format!("{}: {} ({why})", target.name, input.display()));
         }
@@ -351,9 +379,14 @@ fn kept_crashes_give_a_one_line_error_through_the_cli() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz-regressions");
     let work = tempfile::tempdir().unwrap();
     let mut seen = 0;
-    for (target, file) in
-        [("gltf", "s.gltf"), ("glb", "s.glb"), ("obj", "s.obj"), ("mtl", "scene.mtl"), ("exr", "c.exr")]
-    {
+    for (target, file) in [
+        ("gltf", "s.gltf"),
+        ("glb", "s.glb"),
+        ("obj", "s.obj"),
+        ("mtl", "scene.mtl"),
+        ("exr", "c.exr"),
+        ("jpeg", "c.jpg"),
+    ] {
         let Ok(entries) = std::fs::read_dir(repo.join(target)) else { continue };
         for entry in entries.flatten() {
             let input = work.path().join(file);
@@ -362,7 +395,7 @@ fn kept_crashes_give_a_one_line_error_through_the_cli() {
             let out = work.path().join("out.exr");
             let (o, named) = (out.to_str().unwrap(), input.to_str().unwrap());
             let args: Vec<&str> = match target {
-                "exr" => vec!["denoise", "--color", named, "--guide", named, "-o", o],
+                "exr" | "jpeg" => vec!["denoise", "--color", named, "--guide", named, "-o", o],
                 "mtl" => vec!["guide", work.path().join("uses-mtl.obj").to_str().unwrap().to_owned().leak(), "-o", o],
                 _ => vec!["guide", named, "-o", o],
             };
@@ -380,5 +413,5 @@ fn kept_crashes_give_a_one_line_error_through_the_cli() {
             seen += 1;
         }
     }
-    assert!(seen >= 9, "only {seen} kept crashes were replayed");
+    assert!(seen >= 10, "only {seen} kept crashes were replayed");
 }

@@ -74,11 +74,11 @@ fn write_gltf(dir: &Path, name: &str, mut doc: Value, buf: &[u8]) -> PathBuf {
 /// Writes a binary .glb: header, JSON chunk, BIN chunk.
 fn write_glb(dir: &Path, name: &str, doc: Value, buf: &[u8]) -> PathBuf {
     let mut js = serde_json::to_vec(&doc).unwrap();
-    while js.len() % 4 != 0 {
+    while !js.len().is_multiple_of(4) {
         js.push(b' ');
     }
     let mut bin = buf.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + js.len() + 8 + bin.len();

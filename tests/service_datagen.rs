@@ -25,7 +25,8 @@ fn datagen(dir: &Path, extra: &[&str]) -> Command {
 
 fn spawn_worker(url: &str) -> Child {
     Command::new(env!("CARGO_BIN_EXE_rtd"))
-        .args(["worker", "--database", url, "--lease", "3s", "--threads", "1"])
+        // A lease long enough that a loaded 2-core machine never lets one run out mid-scene.
+        .args(["worker", "--database", url, "--lease", "20s", "--threads", "1"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -80,6 +81,10 @@ async fn distributed_datagen_equals_one_machine(db: Db) {
     wait_for("the job to be queued", Duration::from_secs(60), async || queued.exists()).await;
     let dbc = Database::connect(&tdb.url).await.unwrap();
     wait_for("the tasks", Duration::from_secs(30), async || tasks(&dbc).await.len() == 6).await;
+    // A second coordinator on the same directory is refused while the first gathers.
+    let second = datagen(&multi, &["--database", &tdb.url]).output().unwrap();
+    let said = String::from_utf8_lossy(&second.stderr);
+    assert!(!second.status.success() && said.contains("another rtd datagen is gathering"), "{said}");
     first.kill().unwrap(); // SIGKILL
     first.wait().unwrap();
 
@@ -93,6 +98,7 @@ async fn distributed_datagen_equals_one_machine(db: Db) {
     node.wait().unwrap();
 
     assert!(!queued.exists(), "the finished job's record is removed");
+    assert!(!multi.join("datagen.lock").exists(), "the finished dataset's lock file is removed");
     let jobs: Vec<(String, String)> = sqlx::query("SELECT key, state FROM jobs")
         .fetch_all(&dbc.pool)
         .await

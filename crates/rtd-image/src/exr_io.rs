@@ -1,8 +1,8 @@
 use std::path::Path;
 
 use exr::prelude::{
-    read_all_flat_layers_from_file, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer,
-    LayerAttributes, LineOrder, SmallVec, WritableImage,
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer, LayerAttributes, LineOrder, SmallVec,
+    WritableImage,
 };
 
 use crate::layer::{join, Channels, Layer};
@@ -159,8 +159,21 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
         return Err(ImageError::missing(path));
     }
     check_exr_headers(path)?;
-    // The exr crate panics on some malformed files (found by fuzzing): fenced.
-    let image = crate::contain_panic(|| read_all_flat_layers_from_file(path))
+    // The exr crate panics on some malformed files (found by fuzzing): fenced. Its parallel
+    // decoder runs blocks on a thread pool of its own, where a panic aborts the process
+    // instead of unwinding to the fence, so the blocks are decoded on this thread.
+    let read = || {
+        use exr::prelude::{ReadChannels, ReadLayers};
+        exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .non_parallel()
+            .from_file(path)
+    };
+    let image = crate::contain_panic(read)
         .map_err(|e| ImageError::decode(path, e))?
         .map_err(|e| ImageError::decode(path, e))?;
     let first = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;

@@ -102,6 +102,13 @@ pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
             )
         })
         .collect();
+    // A file whose header and pixel data disagree on the size (found by fuzzing a JPEG).
+    if (decoded.width(), decoded.height()) != (w, h) {
+        return Err(ImageError::invalid(
+            path,
+            format!("header says {w}x{h} but the pixel data is {}x{}", decoded.width(), decoded.height()),
+        ));
+    }
     Ok(HdrImage::from_pixels(w, h, pixels))
 }
 

@@ -31,7 +31,7 @@ pub use format::ImageFormat;
 pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
-pub use parser_guard::contain_panic;
+pub use parser_guard::{contain_panic, contained_panics};
 pub use progress::{Progress, Quiet};
 pub use sniff::{check_image_size, read_image_header, ImageHeader};
 

@@ -10,7 +10,7 @@ use glam::Vec3;
 pub struct Metrics {
     /// PSNR in dB of the tonemapped images (infinite when identical).
     pub psnr: f64,
-    /// Mean SSIM of the tonemapped luminance-free RGB (8×8 windows, stride 4).
+    /// Mean SSIM of the tonemapped RGB channels (Wang et al.: 11×11 Gaussian window, σ = 1.5).
     pub ssim: f64,
     /// Relative MSE, mean((x−y)²/(y²+0.01)).
     pub relmse: f64,
@@ -50,47 +50,84 @@ pub fn psnr(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
     }
 }
 
-/// Mean SSIM over 8×8 windows (stride 4) of each tonemapped channel, constants for peak 1.
+/// Mean SSIM of the tonemapped channels as Wang et al. (2004) define it and scikit-image
+/// computes it (`gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
+/// data_range=1`): local statistics under an 11×11 Gaussian window (σ = 1.5), edges mirrored,
+/// averaged over the pixels at least 5 from the edge, then over the channels. An image under
+/// 11 pixels a side is averaged over all its pixels.
 pub fn ssim(test: &HdrImage, reference: &HdrImage, crop: u32) -> f64 {
-    let (c1, c2) = (0.01f64 * 0.01, 0.03f64 * 0.03);
     let (w, h) = (reference.width, reference.height);
     let (x0, y0) = (crop.min(w / 2), crop.min(h / 2));
-    let (x1, y1) = (w - x0, h - y0);
-    let win = 8u32.min(x1 - x0).min(y1 - y0).max(1);
-    let (mut total, mut count) = (0.0f64, 0usize);
-    let mut y = y0;
-    while y + win <= y1 {
-        let mut x = x0;
-        while x + win <= x1 {
-            for c in 0..3 {
-                let (mut sa, mut sb, mut saa, mut sbb, mut sab) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
-                for j in y..y + win {
-                    for i in x..x + win {
-                        let a = tonemapped(test.get(i, j))[c] as f64;
-                        let b = tonemapped(reference.get(i, j))[c] as f64;
-                        sa += a;
-                        sb += b;
-                        saa += a * a;
-                        sbb += b * b;
-                        sab += a * b;
-                    }
-                }
-                let n = (win * win) as f64;
-                let (ma, mb) = (sa / n, sb / n);
-                let (va, vb, cov) = (saa / n - ma * ma, sbb / n - mb * mb, sab / n - ma * mb);
-                // SSIM of one window: luminance × contrast-structure terms.
-                total += ((2.0 * ma * mb + c1) * (2.0 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
-                count += 1;
-            }
-            x += 4;
+    let (cw, ch) = ((w - 2 * x0) as usize, (h - 2 * y0) as usize);
+    let plane = |img: &HdrImage, c: usize| -> Vec<f64> {
+        pixels_in(w, h, crop).map(|(x, y)| tonemapped(img.get(x, y))[c] as f64).collect()
+    };
+    (0..3).map(|c| ssim_plane(&plane(test, c), &plane(reference, c), cw, ch)).sum::<f64>() / 3.0
+}
+
+/// SSIM of two `w`×`h` planes of values in [0, 1] (see [`ssim`]).
+fn ssim_plane(a: &[f64], b: &[f64], w: usize, h: usize) -> f64 {
+    if w == 0 || h == 0 {
+        return 1.0;
+    }
+    let (c1, c2) = (0.01f64 * 0.01, 0.03f64 * 0.03);
+    let product = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(x, y)| x * y).collect::<Vec<f64>>();
+    let (ma, mb) = (gaussian_blur(a, w, h), gaussian_blur(b, w, h));
+    let (maa, mbb, mab) =
+        (gaussian_blur(&product(a, a), w, h), gaussian_blur(&product(b, b), w, h), gaussian_blur(&product(a, b), w, h));
+    // The pixels whose window lies inside the image (all of them for a small image).
+    let pad = SSIM_RADIUS;
+    let (xs, ys) = if w > 2 * pad && h > 2 * pad { (pad..w - pad, pad..h - pad) } else { (0..w, 0..h) };
+    let (mut total, mut n) = (0.0, 0usize);
+    for y in ys {
+        for x in xs.clone() {
+            let k = y * w + x;
+            let (va, vb, cov) = (maa[k] - ma[k] * ma[k], mbb[k] - mb[k] * mb[k], mab[k] - ma[k] * mb[k]);
+            // SSIM at one pixel: luminance × contrast-structure terms.
+            total += ((2.0 * ma[k] * mb[k] + c1) * (2.0 * cov + c2))
+                / ((ma[k] * ma[k] + mb[k] * mb[k] + c1) * (va + vb + c2));
+            n += 1;
         }
-        y += 4;
     }
-    if count == 0 {
-        1.0
-    } else {
-        total / count as f64
+    total / n as f64
+}
+
+/// Half-width of SSIM's Gaussian window: 3.5σ rounded, as scipy truncates it.
+const SSIM_RADIUS: usize = 5;
+
+/// `plane` convolved with the normalised Gaussian of σ = 1.5 over ±[`SSIM_RADIUS`], along x
+/// then y, edges mirrored as scipy's `reflect` mode (d c b a | a b c d | d c b a).
+fn gaussian_blur(plane: &[f64], w: usize, h: usize) -> Vec<f64> {
+    let sigma = 1.5f64;
+    let taps: Vec<f64> = (-(SSIM_RADIUS as i64)..=SSIM_RADIUS as i64)
+        .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let norm: f64 = taps.iter().sum();
+    let reflect = |mut i: i64, n: usize| -> usize {
+        let n = n as i64;
+        while i < 0 || i >= n {
+            i = if i < 0 { -i - 1 } else { 2 * n - i - 1 };
+        }
+        i as usize
+    };
+    let r = SSIM_RADIUS as i64;
+    let mut rows = vec![0.0; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let s: f64 =
+                taps.iter().enumerate().map(|(t, k)| k * plane[y * w + reflect(x as i64 + t as i64 - r, w)]).sum();
+            rows[y * w + x] = s / norm;
+        }
     }
+    let mut out = vec![0.0; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let s: f64 =
+                taps.iter().enumerate().map(|(t, k)| k * rows[reflect(y as i64 + t as i64 - r, h) * w + x]).sum();
+            out[y * w + x] = s / norm;
+        }
+    }
+    out
 }
 
 /// Relative MSE: mean over channels of (x−y)²/(y²+0.01).
@@ -215,6 +252,34 @@ mod tests {
         assert!((snr_db(&t, &r, 0) - 20.0).abs() < 1e-3);
         let s = ssim(&t, &r, 0);
         assert!(s < 0.99 && s > 0.0, "{s}");
+    }
+
+    #[test]
+    fn ssim_matches_scikit_image() {
+        // scikit-image 0.26: structural_similarity(a, b, gaussian_weights=True, sigma=1.5,
+        // use_sample_covariance=False, data_range=1.0, channel_axis=-1) on these 24×20 planes
+        // gives 0.038557160751500875 (unrelated patterns) and 0.9945014710004022 (a vs
+        // 0.9 a + 0.05), averaged over the three channels.
+        let (w, h) = (24usize, 20usize);
+        let plane = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+            (0..h).flat_map(|j| (0..w).map(move |i| (i, j))).map(|(i, j)| f(i, j)).collect()
+        };
+        let mean_over_channels = |pair: &dyn Fn(usize) -> (Vec<f64>, Vec<f64>)| {
+            (0..3)
+                .map(|c| {
+                    let (a, b) = pair(c);
+                    ssim_plane(&a, &b, w, h)
+                })
+                .sum::<f64>()
+                / 3.0
+        };
+        let a = |c: usize| plane(&move |i, j| ((i * 7 + j * 13 + c * 29) % 17) as f64 / 16.0);
+        let b = |c: usize| plane(&move |i, j| ((i * 5 + j * 11 + c * 3 + (i * j) % 7) % 19) as f64 / 18.0);
+        let unrelated = mean_over_channels(&|c| (a(c), b(c)));
+        assert!((unrelated - 0.038557160751500875).abs() < 1e-12, "{unrelated}");
+        let dimmed = mean_over_channels(&|c| (a(c), a(c).iter().map(|v| (v * 0.9 + 0.05).clamp(0.0, 1.0)).collect()));
+        assert!((dimmed - 0.9945014710004022).abs() < 1e-12, "{dimmed}");
+        assert_eq!(ssim_plane(&a(0), &a(0), w, h), 1.0);
     }
 
     #[test]

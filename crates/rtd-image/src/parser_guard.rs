@@ -7,7 +7,17 @@
 
 use std::cell::Cell;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Once;
+
+/// Panics [`contain_panic`] has turned into errors in this process.
+static CONTAINED: AtomicU64 = AtomicU64::new(0);
+
+/// How many panics [`contain_panic`] has turned into errors in this process: a fuzzer counts
+/// them, as each is a parser bug that the fence hides.
+pub fn contained_panics() -> u64 {
+    CONTAINED.load(Ordering::Relaxed)
+}
 
 thread_local! {
     /// How many [`contain_panic`] calls are running on this thread.
@@ -35,6 +45,7 @@ pub fn contain_panic<T>(parse: impl FnOnce() -> T) -> Result<T, String> {
     let result = catch_unwind(AssertUnwindSafe(parse));
     FENCED.with(|f| f.set(f.get() - 1));
     result.map_err(|payload| {
+        CONTAINED.fetch_add(1, Ordering::Relaxed);
         let message = payload
             .downcast_ref::<String>()
             .cloned()

@@ -74,10 +74,12 @@ impl DatasetJob {
     /// lacks (or finds the job queued before), adds finished scenes as they come and returns
     /// when all are in, when the job fails (its error) or when `progress` is cancelled.
     pub async fn run(&self, options: &DatasetOptions, progress: &dyn Progress) -> Result<DatasetRun, ServiceError> {
+        let _owner = self.lock_dir()?;
         let mut manifest = Manifest::open(&self.dir, options)?;
         progress.start(manifest.views_in_total(), "datagen");
         progress.inc(manifest.views_done());
         let Some(key) = self.find_or_queue(&manifest).await? else {
+            self.unlock_dir();
             return Ok(DatasetRun::Complete { job: None, added: 0 });
         };
         let mut added = 0;
@@ -85,16 +87,20 @@ impl DatasetJob {
             added += self.collect(&key, &mut manifest, progress).await?;
             let (state, left, error) = self.job_state(&key).await?;
             if state == "failed" {
+                // Scenes that finished before the failure are kept.
+                let kept = added + self.collect(&key, &mut manifest, progress).await?;
                 self.forget_job()?;
                 let why = error.unwrap_or_else(|| "a scene could not be rendered".into());
                 return Err(ServiceError::Job(format!(
-                    "{}: dataset job {key} failed: {why}; rerunning queues the missing scenes again",
+                    "{}: dataset job {key} failed: {why}; {kept} views were kept, and rerunning queues the \
+                     missing scenes again",
                     self.dir.display()
                 )));
             }
             if left == 0 {
                 self.finish_job(&key).await?;
                 self.forget_job()?;
+                self.unlock_dir();
                 return Ok(DatasetRun::Complete { job: Some(key), added });
             }
             if progress.cancelled() {
@@ -102,6 +108,40 @@ impl DatasetJob {
             }
             tokio::time::sleep(self.poll).await;
         }
+    }
+
+    /// An exclusive lock on the directory for this run: two coordinators gathering into one
+    /// dataset would each save their own manifest over the other's.
+    fn lock_dir(&self) -> Result<std::fs::File, ServiceError> {
+        std::fs::create_dir_all(&self.dir)
+            .map_err(|e| ServiceError::io(format!("{}: cannot create", self.dir.display()), e))?;
+        let path = self.lock_file();
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| ServiceError::io(format!("{}: cannot open", path.display()), e))?;
+        match file.try_lock() {
+            Ok(()) => Ok(file),
+            Err(std::fs::TryLockError::WouldBlock) => Err(ServiceError::Config(format!(
+                "{}: another rtd datagen is gathering into this dataset",
+                self.dir.display()
+            ))),
+            Err(std::fs::TryLockError::Error(e)) => {
+                Err(ServiceError::io(format!("{}: cannot lock", path.display()), e))
+            }
+        }
+    }
+
+    fn lock_file(&self) -> PathBuf {
+        self.dir.join("datagen.lock")
+    }
+
+    /// Removes the lock file of a finished dataset, which is then the one-machine run's files.
+    /// (The lock itself goes with the open file when [`DatasetJob::run`] returns.)
+    fn unlock_dir(&self) {
+        let _ = std::fs::remove_file(self.lock_file());
     }
 
     fn queue_file(&self) -> PathBuf {
@@ -182,7 +222,8 @@ impl DatasetJob {
 
     /// Adds every finished, not yet collected scene of job `key` to the dataset, one at a
     /// time, and drops each shard's bytes from the database once its views are saved.
-    /// Returns the views added.
+    /// Returns the views added. Needs tokio's multi-threaded runtime (the files are written
+    /// in place, with `block_in_place`).
     async fn collect(
         &self,
         key: &JobKey,

@@ -144,10 +144,15 @@ impl JobQueue {
                 // every lease.
                 let why = "The job's record is damaged and cannot be worked on";
                 tracing::error!(task = id, error = %e, "failing an unreadable task");
-                sqlx::query("UPDATE tasks SET state = 'failed', lease_until_ms = NULL WHERE id = $1")
-                    .bind(id)
-                    .execute(&mut *tx)
-                    .await?;
+                // The whole job stops, as `fail` stops it: no other task of it runs.
+                sqlx::query(
+                    "UPDATE tasks SET state = 'failed', lease_until_ms = NULL \
+                     WHERE id = $1 OR (job_key = $2 AND state IN ('queued', 'waiting'))",
+                )
+                .bind(id)
+                .bind(key.clone())
+                .execute(&mut *tx)
+                .await?;
                 sqlx::query("UPDATE jobs SET state = 'failed', error = $1, finished_ms = $2 WHERE key = $3")
                     .bind(why)
                     .bind(now)
@@ -253,7 +258,7 @@ impl JobQueue {
             TaskOutput::Result { exr, png, input_png, timings, size } => {
                 sqlx::query(
                     "UPDATE jobs SET state = 'done', finished_ms = $1, result_exr = $2, result_png = $3, input_png = $4, \
-                     timings = $5, width = $6, height = $7 WHERE key = $8",
+                     timings = $5, width = $6, height = $7 WHERE key = $8 AND state <> 'failed'",
                 )
                 .bind(now)
                 .bind(exr)

@@ -150,10 +150,14 @@ impl RunFiles {
         path
     }
 
-    /// Removes every checkpoint but the one after `step` steps, and a legacy one (best effort:
-    /// a leftover only takes room).
+    /// Removes every checkpoint but the one after `step` steps, and a legacy one, once the
+    /// folder of `step` is whole (best effort: a leftover only takes room).
     fn remove_all_but(&self, step: u64) {
         let keep = self.checkpoint(step);
+        if !keep.join("weights.bpk").exists() || !keep.join("optimizer.bpk").exists() {
+            // The run's checkpoint is a legacy one (or missing): nothing else may go.
+            return;
+        }
         if let Ok(entries) = std::fs::read_dir(self.checkpoints()) {
             for e in entries.flatten() {
                 if e.path() != keep {
@@ -312,6 +316,8 @@ fn start_or_resume(files: &RunFiles, options: &TrainOptions, resume: bool, devic
     let optim_record =
         burn::optim::OptimizerRecord::load(&optimizer).map_err(|e| TrainError::msg(&optimizer, e.to_string()))?;
     let optim = AdamConfig::new().init().load_record(optim_record);
+    // A run killed between naming a checkpoint and removing the older ones left those behind.
+    files.remove_all_but(state.step);
     Ok(Run { net, optim, state })
 }
 
@@ -369,7 +375,7 @@ fn run_steps(
         epoch_losses.push(loss as f64);
         run.state.step += 1;
         progress.inc(1);
-        if run.state.step % options.epoch_steps == 0 || run.state.step == options.steps {
+        if run.state.step.is_multiple_of(options.epoch_steps) || run.state.step == options.steps {
             let crops_per_s = (epoch_losses.len() * options.batch) as f64 / epoch_start.elapsed().as_secs_f64();
             let record = EpochRecord {
                 step: run.state.step,

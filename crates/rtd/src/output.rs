@@ -16,10 +16,8 @@ pub fn check_output(path: &Path) -> anyhow::Result<ImageFormat> {
     }
     // What an earlier run killed mid-write left beside the output goes now.
     rtd_image::remove_orphans_once(dir);
-    tempfile::Builder::new()
-        .prefix(".rtd-check-")
-        .tempfile_in(dir)
-        .with_context(|| format!("{}: output directory is not writable", path.display()))?;
+    // An unnamed file: nothing is left behind even if the process is killed right here.
+    tempfile::tempfile_in(dir).with_context(|| format!("{}: output directory is not writable", path.display()))?;
     Ok(format)
 }
 
