@@ -3,13 +3,14 @@
 //! same manifest (but for wall-clock seconds) as the one-machine run, with every scene rendered
 //! exactly once. On SQLite and on PostgreSQL.
 
+mod common;
 mod service_support;
 
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use common::dataset_files;
 use rtd::service::{Database, JobKey, JobQueue, QUEUE_FILE};
 use service_support::*;
 use sqlx::Row;
@@ -31,28 +32,6 @@ fn spawn_worker(url: &str) -> Child {
         .stderr(Stdio::null())
         .spawn()
         .unwrap()
-}
-
-/// Every file under `dir` by relative path; the manifest as JSON with its `seconds` zeroed.
-fn contents(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
-        for e in std::fs::read_dir(dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(root, &p, out);
-            } else {
-                out.insert(p.strip_prefix(root).unwrap().display().to_string(), std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(dir, dir, &mut out);
-    let mut manifest: serde_json::Value = serde_json::from_slice(&out["manifest.json"]).unwrap();
-    for v in manifest["views"].as_array_mut().unwrap() {
-        v["seconds"] = 0.0.into();
-    }
-    out.insert("manifest.json".into(), serde_json::to_vec_pretty(&manifest).unwrap());
-    out
 }
 
 async fn tasks(db: &Database) -> Vec<(String, i64, Option<String>)> {
@@ -122,7 +101,7 @@ async fn distributed_datagen_equals_one_machine(db: Db) {
         .unwrap();
     assert_eq!(left, 0, "every shard's bytes are dropped once gathered");
 
-    let (a, b) = (contents(&single), contents(&multi));
+    let (a, b) = (dataset_files(&single), dataset_files(&multi));
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     assert!(a.keys().filter(|k| k.starts_with("views/")).count() >= 4, "{:?}", a.keys());
     for (name, bytes) in &a {
@@ -132,7 +111,7 @@ async fn distributed_datagen_equals_one_machine(db: Db) {
     // Rerunning a finished dataset queues nothing and changes nothing.
     let again = datagen(&multi, &["--database", &tdb.url]).output().unwrap();
     assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
-    assert_eq!(contents(&multi), b);
+    assert_eq!(dataset_files(&multi), b);
     let n: i64 = sqlx::query("SELECT COUNT(*) FROM jobs").fetch_one(&dbc.pool).await.unwrap().try_get(0).unwrap();
     assert_eq!(n, 1);
 }

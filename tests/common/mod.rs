@@ -100,3 +100,32 @@ pub fn write_multipart_exr(path: &std::path::Path, (w, h): (usize, usize), parts
     let image = Image::from_layers(ImageAttributes::new(IntegerBounds::from_dimensions((w, h))), layers);
     image.write().to_file(path).expect("write a multi-part EXR");
 }
+
+/// Every file under `dir`, by relative path.
+pub fn files_under(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    fn walk(root: &std::path::Path, dir: &std::path::Path, out: &mut std::collections::BTreeMap<String, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                out.insert(p.strip_prefix(root).unwrap().display().to_string(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    let mut out = std::collections::BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+/// Every file of an `rtd datagen` dataset, with the manifest's wall-clock `seconds` zeroed:
+/// what two runs of the same options must agree on.
+pub fn dataset_files(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut out = files_under(dir);
+    let mut manifest: serde_json::Value = serde_json::from_slice(&out["manifest.json"]).unwrap();
+    for v in manifest["views"].as_array_mut().unwrap() {
+        v["seconds"] = 0.0.into();
+    }
+    out.insert("manifest.json".into(), serde_json::to_vec_pretty(&manifest).unwrap());
+    out
+}
