@@ -64,6 +64,7 @@ fn targets() -> Vec<Target> {
         Target { name: "exr", file: "image.exr", load: |p, _| drop(rtd::image::read_exr(p)) },
         Target { name: "png", file: "image.png", load: |p, _| drop(rtd::image::read_ldr(p)) },
         Target { name: "jpeg", file: "image.jpg", load: |p, _| drop(rtd::image::read_ldr(p)) },
+        Target { name: "pfm", file: "image.pfm", load: |p, _| drop(rtd::image::read_pfm(p)) },
         Target {
             name: "model",
             file: "model.bpk",
@@ -95,8 +96,11 @@ fn corpus(target: &str, dir: &Path) -> Vec<Vec<u8>> {
         "exr" => vec![exr(dir, &["R", "G", "B"]), exr(dir, &["R", "G", "B", "albedo.R", "albedo.G", "albedo.B"])],
         "png" => vec![ldr(image::ImageFormat::Png), tiny_png()],
         "jpeg" => vec![ldr(image::ImageFormat::Jpeg)],
+        "pfm" => vec![pfm(false), pfm(true), b"Pf 2 1 1.0\n\0\0\0\0\0\0\0\0".to_vec()],
         "model" => vec![std::fs::read(repo.join("models/rtd-denoiser.bpk")).unwrap()],
-        "upload" => vec![tiny_png(), ldr(image::ImageFormat::Jpeg), exr(dir, &["R", "G", "B"]), glb(&cornell)],
+        "upload" => {
+            vec![tiny_png(), ldr(image::ImageFormat::Jpeg), exr(dir, &["R", "G", "B"]), glb(&cornell), pfm(true)]
+        }
         _ => unreachable!(),
     };
     let kept = repo.join("tests/fuzz-regressions").join(target);
@@ -109,6 +113,12 @@ fn corpus(target: &str, dir: &Path) -> Vec<Vec<u8>> {
 const OBJ: &str = "mtllib scene.mtl\no box\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
 usemtl red\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/1/1\n";
 const MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\nKs 0.04 0.04 0.04\nNs 20\nKe 0 0 0\nd 1\nNi 1.5\nillum 2\n";
+
+/// A 5×3 PFM (or PHM) of a gradient.
+fn pfm(half: bool) -> Vec<u8> {
+    let px = (0..15).map(|i| glam::Vec3::new(i as f32, 0.5, -1.0)).collect();
+    rtd::image::encode_pfm(&rtd::image::HdrImage::from_pixels(5, 3, px), half)
+}
 
 fn tiny_png() -> Vec<u8> {
     let img = image::RgbImage::from_fn(2, 2, |x, y| image::Rgb([(x * 200) as u8, (y * 200) as u8, 90]));
@@ -263,7 +273,9 @@ fn watchdog(busy_since: &'static AtomicUsize, origin: Instant, input: PathBuf) {
     std::thread::spawn(move || loop {
         std::thread::sleep(Duration::from_millis(500));
         let since = busy_since.load(Ordering::Relaxed);
-        if since != 0 && origin.elapsed().as_millis() as usize - since > TIME_LIMIT.as_millis() as usize {
+        // Saturating: an input started within the current millisecond is stored as now + 1.
+        let running = (origin.elapsed().as_millis() as usize).saturating_sub(since);
+        if since != 0 && running > TIME_LIMIT.as_millis() as usize {
             eprintln!("fuzz: one input ran past {TIME_LIMIT:?}: {}", input.display());
             std::process::abort();
         }

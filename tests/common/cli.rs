@@ -1,5 +1,6 @@
 //! Helpers for tests that run the `rtd` binary.
 
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// Runs the `rtd` binary with `args`.
@@ -22,4 +23,15 @@ pub fn assert_fails(out: &Output, needle: &str) {
     assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
     assert!(lines[0].starts_with("rtd: error: "), "{err}");
     assert!(err.contains(needle), "error should mention '{needle}': {err}");
+}
+
+/// Renders a small noisy EXR of the Cornell box with all guide layers (`--aov`) into `dir`;
+/// returns its path.
+pub fn noisy_exr(dir: &Path, w: u32, h: u32) -> PathBuf {
+    let out = dir.join(format!("noisy{w}x{h}.exr"));
+    let (w, h) = (w.to_string(), h.to_string());
+    let args = ["render", &cornell_path(), "-o", out.to_str().unwrap(), "--spp", "4", "--width", &w, "--height", &h];
+    let o = rtd(&[&args[..], &["--aov", "-q"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
 }

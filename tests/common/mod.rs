@@ -87,13 +87,23 @@ pub type ExrPart<'a> = (&'a str, Vec<(&'a str, Vec<f32>)>);
 
 /// Writes a multi-part EXR as Blender 5 writes its render passes: one part per pass, each named
 /// `ViewLayer.<pass>`, with its own channels (`R,G,B[,A]` or `X,Y,Z`).
-pub fn write_multipart_exr(path: &std::path::Path, (w, h): (usize, usize), parts: &[ExrPart]) {
+pub fn write_multipart_exr(path: &std::path::Path, size: (usize, usize), parts: &[ExrPart]) {
+    write_multipart_exr_as(path, size, parts, false)
+}
+
+/// [`write_multipart_exr`] with every channel stored as 16-bit half floats when `half` (as
+/// Blender writes by default).
+pub fn write_multipart_exr_as(path: &std::path::Path, (w, h): (usize, usize), parts: &[ExrPart], half: bool) {
     use exr::prelude::*;
+    let samples = |s: &Vec<f32>| match half {
+        true => FlatSamples::F16(s.iter().map(|&v| f16::from_f32(v)).collect()),
+        false => FlatSamples::F32(s.clone()),
+    };
     let layers: Vec<Layer<AnyChannels<FlatSamples>>> = parts
         .iter()
         .map(|(name, channels)| {
             let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
-                channels.iter().map(|(n, s)| AnyChannel::new(*n, FlatSamples::F32(s.clone()))).collect();
+                channels.iter().map(|(n, s)| AnyChannel::new(*n, samples(s))).collect();
             Layer::new((w, h), LayerAttributes::named(*name), Encoding::FAST_LOSSLESS, AnyChannels::sort(list))
         })
         .collect();

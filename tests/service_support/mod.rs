@@ -171,12 +171,7 @@ pub fn repo_scene(name: &str) -> PathBuf {
 /// What `rtd denoise --color C --guide G -o out.{exr,png}` writes, as bytes (exr, png).
 pub fn cli_denoise(color: &Path, guide: &Path) -> (Vec<u8>, Vec<u8>) {
     let dir = tempfile::tempdir().unwrap();
-    let sources = rtd::pipeline::DenoiseSources {
-        color: color.to_path_buf(),
-        guide: Some(guide.to_path_buf()),
-        albedo: None,
-        normal: None,
-    };
+    let sources = rtd::pipeline::DenoiseSources::new(color).guide(Some(guide.to_path_buf()));
     let (exr, png) = (dir.path().join("out.exr"), dir.path().join("out.png"));
     sources.run(&denoiser(), &exr, 0.0).unwrap();
     sources.run(&denoiser(), &png, 0.0).unwrap();

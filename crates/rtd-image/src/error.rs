@@ -20,7 +20,7 @@ pub enum ImageError {
         message: String,
     },
     /// The file's extension names no format rtd can write or read.
-    #[error("{path}: unknown image format (use .exr, .png, .jpg or .jpeg)")]
+    #[error("{path}: unknown image format (use .exr, .png, .jpg, .jpeg, .pfm or .phm)")]
     UnknownFormat {
         /// The file concerned.
         path: PathBuf,

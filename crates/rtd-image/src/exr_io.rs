@@ -1,8 +1,8 @@
 use std::path::Path;
 
 use exr::prelude::{
-    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer, LayerAttributes, LineOrder, SmallVec,
-    WritableImage,
+    f16, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer as ExrLayer, LayerAttributes, LineOrder,
+    SmallVec, WritableImage,
 };
 
 use crate::layer::{join, Channels, Layer};
@@ -20,12 +20,15 @@ pub struct Layers {
     pub height: u32,
     /// `(name, samples)` pairs, each with `width * height` samples, row-major from the top.
     pub channels: Vec<(String, Vec<f32>)>,
+    /// The channels stored as 16-bit half floats (as read from a file, or to be written so);
+    /// the rest are 32-bit.
+    pub half_channels: Vec<String>,
 }
 
 impl Layers {
     /// An empty set of channels for an image of the given size.
     pub fn new(width: u32, height: u32) -> Self {
-        Layers { width, height, channels: Vec::new() }
+        Layers { width, height, channels: Vec::new(), half_channels: Vec::new() }
     }
 
     /// Adds one channel; replaces an existing channel of the same name.
@@ -33,6 +36,7 @@ impl Layers {
         let name = name.into();
         assert_eq!(samples.len(), self.width as usize * self.height as usize, "channel {name} has the wrong size");
         self.channels.retain(|(n, _)| *n != name);
+        self.half_channels.retain(|n| *n != name);
         self.channels.push((name, samples));
     }
 
@@ -66,48 +70,19 @@ impl Layers {
     /// The image under `layer`'s prefix with the channel naming `channels` (for files from
     /// other software, which may store normals as `normal.R/G/B`).
     pub fn image_as(&self, layer: Layer, channels: Channels) -> Option<HdrImage> {
-        self.image_under(&layer.prefix(), channels.triple()?)
-    }
-
-    /// The image in channels `prefix.R/G/B` (or whichever `suffixes`), if all three exist.
-    fn image_under(&self, prefix: &str, suffixes: [&str; 3]) -> Option<HdrImage> {
-        let [r, g, b] = suffixes.map(|n| self.get(&join(prefix, n)));
+        let suffixes = channels.triple()?;
+        let [r, g, b] = suffixes.map(|n| self.get(&join(&layer.prefix(), n)));
         Some(HdrImage::from_planes(self.width, self.height, r?, g?, b?))
     }
 
-    /// The image of `layer` in a file from any renderer: rtd's own channel names, then the same
-    /// prefix with the other vector naming (`normal.R/G/B`), then the names other software
-    /// gives the pass ([`Layer::studio_names`], under any prefix such as Blender's view layer).
-    pub fn find_image(&self, layer: Layer) -> Option<HdrImage> {
-        let other = match layer.channels() {
-            Channels::Xyz => Channels::Rgb,
-            _ => Channels::Xyz,
-        };
-        if let Some(img) = self.image(layer).or_else(|| self.image_as(layer, other)) {
-            return Some(img);
+    /// Replaces the samples of the existing channel `name`, keeping its sample type (half or
+    /// 32-bit); adds it as a 32-bit channel if absent.
+    pub fn set_samples(&mut self, name: &str, samples: Vec<f32>) {
+        assert_eq!(samples.len(), self.width as usize * self.height as usize, "channel {name} has the wrong size");
+        match self.channels.iter_mut().find(|(n, _)| n == name) {
+            Some((_, s)) => *s = samples,
+            None => self.channels.push((name.to_string(), samples)),
         }
-        let namings = [Channels::Rgb, Channels::Xyz].map(|c| c.triple().unwrap_or_default());
-        for studio in layer.studio_names() {
-            for prefix in self.prefixes().iter().filter(|p| *p == studio || p.ends_with(&format!(".{studio}"))) {
-                if let Some(img) = namings.iter().find_map(|names| self.image_under(prefix, *names)) {
-                    return Some(img);
-                }
-            }
-        }
-        None
-    }
-
-    /// The distinct layer prefixes present (the part of each channel name before its last dot;
-    /// empty for bare channels), in file order: what an error lists when a layer is missing.
-    pub fn prefixes(&self) -> Vec<String> {
-        let mut out: Vec<String> = Vec::new();
-        for (name, _) in &self.channels {
-            let prefix = name.rsplit_once('.').map_or("", |(p, _)| p).to_string();
-            if !out.contains(&prefix) {
-                out.push(prefix);
-            }
-        }
-        out
     }
 
     /// The samples of a one-value-per-pixel layer, if present.
@@ -116,8 +91,9 @@ impl Layers {
     }
 }
 
-/// Writes `layers` as a one-part, 32-bit float EXR, atomically.
-/// Non-finite samples are written as 0, so NaN or Inf never reaches a file.
+/// Writes `layers` as a one-part float EXR, atomically: 32-bit channels, and 16-bit ones for
+/// those in [`Layers::half_channels`]. Non-finite samples are written as 0, and half samples
+/// beyond half's range as its largest finite value, so NaN or Inf never reaches a file.
 pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
     write_bytes_atomic(path, &encode_exr(path, layers)?)
 }
@@ -134,8 +110,14 @@ pub fn encode_exr(path: &Path, layers: &Layers) -> Result<Vec<u8>, ImageError> {
         .channels
         .iter()
         .map(|(name, s)| {
-            let clean = s.iter().map(|&v| if v.is_finite() { v } else { 0.0 }).collect();
-            AnyChannel::new(name.as_str(), FlatSamples::F32(clean))
+            let clean = s.iter().map(|&v| if v.is_finite() { v } else { 0.0 });
+            let samples = if layers.half_channels.contains(name) {
+                let max = f16::MAX.to_f32();
+                FlatSamples::F16(clean.map(|v| f16::from_f32(v.clamp(-max, max))).collect())
+            } else {
+                FlatSamples::F32(clean.collect())
+            };
+            AnyChannel::new(name.as_str(), samples)
         })
         .collect();
     // Blocks in increasing order: with the default (unspecified) order, blocks compressed in
@@ -200,6 +182,9 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
                     path,
                     format!("channel {name} is subsampled, which rtd does not read"),
                 ));
+            }
+            if matches!(ch.sample_data, FlatSamples::F16(_)) {
+                out.half_channels.push(name.clone());
             }
             out.channels.push((name, samples));
         }

@@ -11,6 +11,10 @@ pub enum ImageFormat {
     Png,
     /// JPEG, 8-bit sRGB.
     Jpeg,
+    /// PFM, linear 32-bit float RGB (or grey), the format of `oidnDenoise`, pbrt and Mitsuba.
+    Pfm,
+    /// PHM, PFM's half-float twin.
+    Phm,
 }
 
 impl ImageFormat {
@@ -21,6 +25,8 @@ impl ImageFormat {
             Some("exr") => Ok(ImageFormat::Exr),
             Some("png") => Ok(ImageFormat::Png),
             Some("jpg") | Some("jpeg") => Ok(ImageFormat::Jpeg),
+            Some("pfm") => Ok(ImageFormat::Pfm),
+            Some("phm") => Ok(ImageFormat::Phm),
             _ => Err(ImageError::UnknownFormat { path: path.to_path_buf() }),
         }
     }
@@ -34,6 +40,8 @@ mod tests {
     fn extensions() {
         assert_eq!(ImageFormat::from_path(Path::new("a/b.EXR")).unwrap(), ImageFormat::Exr);
         assert_eq!(ImageFormat::from_path(Path::new("b.jpeg")).unwrap(), ImageFormat::Jpeg);
+        assert_eq!(ImageFormat::from_path(Path::new("b.PFM")).unwrap(), ImageFormat::Pfm);
+        assert_eq!(ImageFormat::from_path(Path::new("b.phm")).unwrap(), ImageFormat::Phm);
         assert!(ImageFormat::from_path(Path::new("b.tiff")).is_err());
         assert!(ImageFormat::from_path(Path::new("noext")).is_err());
     }

@@ -89,15 +89,15 @@ impl Layer {
 }
 
 impl Layer {
-    /// Names other software gives this layer's pass, matched as the last part of a prefix
-    /// (Blender's `ViewLayer.Combined.R`, `ViewLayer.Denoising Albedo.G`, in one multi-layer
-    /// part or one part per pass).
+    /// Names other software gives this layer's pass, matched without case against a prefix or
+    /// its last dotted part ([`crate::Layers::find_channels`]): Blender's (`ViewLayer.Combined`,
+    /// `ViewLayer.Denoising Albedo`), Nuke's (`rgba`) and Houdini's (`C`, `N`).
     pub fn studio_names(self) -> &'static [&'static str] {
         match self {
-            Layer::Beauty => &["Combined"],
-            Layer::Albedo => &["Denoising Albedo"],
-            Layer::Normal => &["Denoising Normal"],
-            Layer::Depth => &["Denoising Depth"],
+            Layer::Beauty => &["Combined", "rgba", "C", "beauty"],
+            Layer::Albedo => &["Denoising Albedo", "albedo", "diffuse_albedo", "DiffCol"],
+            Layer::Normal => &["Denoising Normal", "normal", "N", "normals"],
+            Layer::Depth => &["Denoising Depth", "depth"],
             Layer::Noisy | Layer::NoisyAt(_) | Layer::Reference | Layer::Guide | Layer::Ao | Layer::NoiseEstimate => {
                 &[]
             }

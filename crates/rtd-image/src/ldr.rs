@@ -64,7 +64,9 @@ pub fn write_ldr(path: &Path, image: &HdrImage, exposure: f32, tonemap: Tonemap)
     let format = match ImageFormat::from_path(path)? {
         ImageFormat::Png => image::ImageFormat::Png,
         ImageFormat::Jpeg => image::ImageFormat::Jpeg,
-        ImageFormat::Exr => return Err(ImageError::invalid(path, "EXR is not an 8-bit format; use write_exr")),
+        ImageFormat::Exr | ImageFormat::Pfm | ImageFormat::Phm => {
+            return Err(ImageError::invalid(path, "is a float format, not an 8-bit one"))
+        }
     };
     let bytes: Vec<u8> = image.pixels.iter().flat_map(|&p| tonemap_to_srgb8(p, exposure, tonemap)).collect();
     let buf = image::RgbImage::from_raw(image.width, image.height, bytes)
@@ -74,7 +76,14 @@ pub fn write_ldr(path: &Path, image: &HdrImage, exposure: f32, tonemap: Tonemap)
     write_bytes_atomic(path, encoded.get_ref())
 }
 
-/// Reads a PNG or JPEG as sRGB-encoded LDR and returns it as linear RGB in [0,1].
+/// A decoded PNG or JPEG: 8 bits a channel, or more (16-bit PNG).
+enum Decoded {
+    Eight(image::RgbImage),
+    Wide(image::Rgb32FImage),
+}
+
+/// Reads a PNG (8 or 16 bits a channel) or JPEG as sRGB-encoded and returns it as linear RGB in
+/// [0,1].
 pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
     if !path.exists() {
         return Err(ImageError::missing(path));
@@ -88,25 +97,31 @@ pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
         .map_err(|e| ImageError::io(path, e))?
         .with_guessed_format()
         .map_err(|e| ImageError::io(path, e))?;
-    // Fenced as the other parsers are: the image is a stranger's.
-    let decoded = crate::contain_panic(|| reader.decode().map(|d| d.to_rgb8()))
-        .map_err(|e| ImageError::decode(path, e))?
-        .map_err(|e| ImageError::decode(path, e))?;
-    let pixels = decoded
-        .pixels()
-        .map(|p| {
-            Vec3::new(
-                srgb_to_linear(p[0] as f32 / 255.0),
-                srgb_to_linear(p[1] as f32 / 255.0),
-                srgb_to_linear(p[2] as f32 / 255.0),
-            )
+    // Fenced as the other parsers are: the image is a stranger's. 16-bit files keep their
+    // 16 bits (to_rgb32f divides by 65535); 8-bit ones are read as bytes.
+    let decoded = crate::contain_panic(|| {
+        reader.decode().map(|d| match d.color().bytes_per_pixel() / d.color().channel_count() {
+            1 => Decoded::Eight(d.to_rgb8()),
+            _ => Decoded::Wide(d.to_rgb32f()),
         })
-        .collect();
+    })
+    .map_err(|e| ImageError::decode(path, e))?
+    .map_err(|e| ImageError::decode(path, e))?;
+    let (pixels, size): (Vec<Vec3>, (u32, u32)) = match &decoded {
+        Decoded::Eight(img) => {
+            let lin = |v: u8| srgb_to_linear(v as f32 / 255.0);
+            (img.pixels().map(|p| Vec3::new(lin(p[0]), lin(p[1]), lin(p[2]))).collect(), img.dimensions())
+        }
+        Decoded::Wide(img) => {
+            let lin = |v: f32| srgb_to_linear(v.clamp(0.0, 1.0));
+            (img.pixels().map(|p| Vec3::new(lin(p[0]), lin(p[1]), lin(p[2]))).collect(), img.dimensions())
+        }
+    };
     // A file whose header and pixel data disagree on the size (found by fuzzing a JPEG).
-    if (decoded.width(), decoded.height()) != (w, h) {
+    if size != (w, h) {
         return Err(ImageError::invalid(
             path,
-            format!("header says {w}x{h} but the pixel data is {}x{}", decoded.width(), decoded.height()),
+            format!("header says {w}x{h} but the pixel data is {}x{}", size.0, size.1),
         ));
     }
     Ok(HdrImage::from_pixels(w, h, pixels))
@@ -130,6 +145,21 @@ mod tests {
         assert_eq!(tonemap_to_srgb8(Vec3::splat(1e6), 0.0, Tonemap::Clamp), [255, 255, 255]);
         assert_eq!(tonemap_to_srgb8(Vec3::splat(1e6), 0.0, Tonemap::Aces), [255, 255, 255]);
         assert_eq!(tonemap_to_srgb8(Vec3::splat(0.5), 1.0, Tonemap::Clamp), [255, 255, 255]);
+    }
+
+    #[test]
+    fn sixteen_bit_pngs_keep_their_precision() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("wide.png");
+        // Two encoded values 1/65535 apart, which 8 bits would merge.
+        let buf =
+            image::ImageBuffer::<image::Rgb<u16>, Vec<u16>>::from_raw(2, 1, vec![30000, 30000, 30000, 30001, 0, 65535])
+                .unwrap();
+        buf.save(&path).unwrap();
+        let back = read_ldr(&path).unwrap();
+        assert_eq!(back.pixels[0].x, srgb_to_linear(30000.0 / 65535.0));
+        assert_eq!(back.pixels[1].x, srgb_to_linear(30001.0 / 65535.0));
+        assert_eq!((back.pixels[1].y, back.pixels[1].z), (0.0, 1.0));
     }
 
     #[test]

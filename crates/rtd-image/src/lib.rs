@@ -4,7 +4,9 @@
 //! - [`Layers`]: named float channels of one size, written to a one-part EXR and read from
 //!   EXRs of one part or many (`R,G,B`, `albedo.R`, `normal.X`, `depth.Z`, ...).
 //! - [`Layer`]: the EXR layer vocabulary every writer and reader shares.
-//! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`].
+//! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`]; PNG input of 8 or 16
+//!   bits.
+//! - PFM/PHM in and out ([`read_pfm`], [`write_pfm`]), the format of `oidnDenoise`.
 //! - Every write is atomic and durable: a temporary file in the target directory, `fsync`,
 //!   then a rename.
 //! - [`Progress`]: the one observer trait long library calls report to.
@@ -18,9 +20,11 @@ mod exr_io;
 mod format;
 mod hdr;
 mod layer;
+mod layer_lookup;
 mod ldr;
 pub mod metrics;
 mod parser_guard;
+mod pfm;
 mod progress;
 mod sniff;
 
@@ -32,6 +36,7 @@ pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
 pub use parser_guard::{contain_panic, contained_panics};
+pub use pfm::{decode_pfm, encode_pfm, read_pfm, read_pfm_header, write_pfm, PfmHeader};
 pub use progress::{Progress, Quiet};
 pub use sniff::{check_image_size, read_image_header, ImageHeader};
 

@@ -52,7 +52,7 @@ pub(crate) fn check_exr_parts(name: &Path, meta: &exr::meta::MetaData) -> Result
 }
 
 impl ImageFormat {
-    /// The format `bytes` begin with: EXR, PNG or JPEG magic numbers, else `None`.
+    /// The format `bytes` begin with: EXR, PNG, JPEG or PFM/PHM magic numbers, else `None`.
     pub fn sniff(bytes: &[u8]) -> Option<ImageFormat> {
         if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
             Some(ImageFormat::Exr)
@@ -60,6 +60,8 @@ impl ImageFormat {
             Some(ImageFormat::Png)
         } else if bytes.starts_with(&[0xff, 0xd8, 0xff]) {
             Some(ImageFormat::Jpeg)
+        } else if crate::pfm::is_pfm(bytes) {
+            Some(if matches!(bytes[1], b'F' | b'f') { ImageFormat::Pfm } else { ImageFormat::Phm })
         } else {
             None
         }
@@ -71,6 +73,8 @@ impl ImageFormat {
             ImageFormat::Exr => "exr",
             ImageFormat::Png => "png",
             ImageFormat::Jpeg => "jpg",
+            ImageFormat::Pfm => "pfm",
+            ImageFormat::Phm => "phm",
         }
     }
 }
@@ -80,7 +84,7 @@ impl ImageFormat {
 /// decoded. `name` names the upload or file in errors.
 pub fn read_image_header(name: &Path, bytes: &[u8]) -> Result<ImageHeader, ImageError> {
     let format = ImageFormat::sniff(bytes)
-        .ok_or_else(|| ImageError::invalid(name, "is not an EXR, PNG or JPEG image (judged by its bytes)"))?;
+        .ok_or_else(|| ImageError::invalid(name, "is not an EXR, PNG, JPEG, PFM or PHM image (judged by its bytes)"))?;
     let (width, height) = match format {
         ImageFormat::Exr => {
             let meta = crate::contain_panic(|| exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false))
@@ -94,6 +98,10 @@ pub fn read_image_header(name: &Path, bytes: &[u8]) -> Result<ImageHeader, Image
                 .map_err(|e| ImageError::io(name, e))?;
             let (w, h) = reader.into_dimensions().map_err(|e| ImageError::decode(name, e))?;
             (w as usize, h as usize)
+        }
+        ImageFormat::Pfm | ImageFormat::Phm => {
+            let h = crate::pfm::read_pfm_header(name, bytes)?;
+            (h.width, h.height)
         }
     };
     check_image_size(name, width, height)?;
@@ -155,6 +163,10 @@ mod tests {
     fn formats_are_judged_by_bytes() {
         assert_eq!(ImageFormat::sniff(b"\xff\xd8\xff\xe0rest"), Some(ImageFormat::Jpeg));
         assert_eq!(ImageFormat::sniff(b"<svg>"), None);
+        assert_eq!(ImageFormat::sniff(b"PF\n1 1\n-1\n"), Some(ImageFormat::Pfm));
+        assert_eq!(ImageFormat::sniff(b"Ph 1 1 -1 "), Some(ImageFormat::Phm));
+        let h = read_image_header(Path::new("color"), b"PH\n640 480\n-1\n").unwrap();
+        assert_eq!((h.format, h.width, h.height), (ImageFormat::Phm, 640, 480));
         assert!(read_image_header(Path::new("guide"), b"GIF89a....").is_err());
     }
 }

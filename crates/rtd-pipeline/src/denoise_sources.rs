@@ -1,6 +1,7 @@
 //! `rtd denoise` as a library call: a noisy image and its guide layers, from rtd or any other
 //! renderer, read from files, checked, denoised and written.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -11,10 +12,15 @@ use serde::Serialize;
 
 use crate::PipelineError;
 
-/// The files a denoise reads: the noisy colour, and a guide (material colour × AO) or an albedo
-/// with a normal, or all three. EXR inputs are read from their named layer (`guide.*`,
-/// `albedo.*`, `normal.*`) if present, else from `R,G,B`; PNG and JPEG as sRGB (normals as
-/// n·0.5 + 0.5).
+/// The files a denoise reads: the noisy colour, and optionally a guide (material colour × AO),
+/// an albedo, and a normal (which needs the albedo). EXR inputs are read from their named layer
+/// (rtd's `guide.*`, `albedo.*`, `normal.*`, other renderers' pass names, or a prefix set with
+/// [`DenoiseSources::layer`]), else from `R,G,B`; PFM/PHM as linear; PNG and JPEG as sRGB
+/// (normals as n·0.5 + 0.5).
+///
+/// The inputs set the mode, as OIDN's do: colour with albedo and normal (and a guide, from rtd),
+/// colour with albedo, or colour alone. Without a guide the albedo stands in for material
+/// colour × AO, and without an albedo the noisy colour itself (the thesis's §6.4 ablation).
 #[derive(Clone, Debug, Default)]
 pub struct DenoiseSources {
     /// Noisy colour.
@@ -25,6 +31,8 @@ pub struct DenoiseSources {
     pub albedo: Option<PathBuf>,
     /// Normal (world or camera space).
     pub normal: Option<PathBuf>,
+    /// Layer prefixes the caller named for some inputs (`--layer-color`, …), by layer.
+    pub layer_names: Vec<(Layer, String)>,
 }
 
 /// What a denoise did, as `rtd denoise --report` writes it.
@@ -50,19 +58,40 @@ pub struct DenoiseOutcome {
     pub nonfinite_input_values: usize,
 }
 
-/// The refusal of inputs with neither a guide nor an albedo + normal pair.
-const NO_GUIDE: PipelineError =
-    PipelineError::Sources("a guide (material colour × AO) or an albedo with a normal is needed");
-
 impl DenoiseSources {
-    /// Checks, before any file is read, that the inputs make a usable set: a guide, or an albedo
-    /// with a normal, or both.
+    /// Sources with the noisy colour only; add the rest with the setters.
+    pub fn new(color: impl Into<PathBuf>) -> Self {
+        DenoiseSources { color: color.into(), ..Default::default() }
+    }
+    /// Sets the guide image.
+    pub fn guide(mut self, path: Option<PathBuf>) -> Self {
+        self.guide = path;
+        self
+    }
+    /// Sets the albedo image.
+    pub fn albedo(mut self, path: Option<PathBuf>) -> Self {
+        self.albedo = path;
+        self
+    }
+    /// Sets the normal image.
+    pub fn normal(mut self, path: Option<PathBuf>) -> Self {
+        self.normal = path;
+        self
+    }
+    /// Reads `layer` from the EXR channels under `prefix` (its whole name or last dotted part).
+    pub fn layer(mut self, layer: Layer, prefix: Option<String>) -> Self {
+        self.layer_names.retain(|(l, _)| *l != layer);
+        if let Some(p) = prefix {
+            self.layer_names.push((layer, p));
+        }
+        self
+    }
+
+    /// Checks, before any file is read, that the inputs make a usable set: a normal needs an
+    /// albedo; every other combination is a mode.
     pub fn check(&self) -> Result<(), PipelineError> {
-        match (&self.guide, &self.albedo, &self.normal) {
-            (_, Some(_), None) | (_, None, Some(_)) => {
-                Err(PipelineError::Sources("albedo and normal must be given together"))
-            }
-            (None, None, None) => Err(NO_GUIDE),
+        match (&self.albedo, &self.normal) {
+            (None, Some(_)) => Err(PipelineError::Sources("a normal image needs an albedo image too")),
             _ => Ok(()),
         }
     }
@@ -79,41 +108,36 @@ impl DenoiseSources {
     /// Reads the inputs and denoises them with `denoiser`.
     pub fn denoise(&self, denoiser: &Denoiser) -> Result<Denoised, PipelineError> {
         self.check()?;
-        let color = read_layer(&self.color, Layer::Beauty)?;
+        let mut files = InputFiles::default();
+        let color = files.read(&self.color, Layer::Beauty, self.named(Layer::Beauty))?;
         let mut inputs = vec!["color".to_string()];
-        let albedo_normal = match (&self.albedo, &self.normal) {
-            (Some(a), Some(n)) => {
-                let (ai, ni) = (read_layer(a, Layer::Albedo)?, read_layer(n, Layer::Normal)?);
-                same_size(a, &ai, &color)?;
-                same_size(n, &ni, &color)?;
-                inputs.extend(["albedo".to_string(), "normal".to_string()]);
-                Some((ai, ni))
-            }
-            _ => None,
+        let mut other = |path: &Option<PathBuf>, layer: Layer, name: &str| -> Result<Option<HdrImage>, PipelineError> {
+            let Some(p) = path else { return Ok(None) };
+            let img = files.read(p, layer, self.named(layer))?.image;
+            same_size(p, &img, &color.image)?;
+            inputs.push(name.to_string());
+            Ok(Some(img))
         };
-        let guide = match (&self.guide, &albedo_normal) {
-            (Some(g), _) => {
-                let gi = read_layer(g, Layer::Guide)?;
-                same_size(g, &gi, &color)?;
-                inputs.push("guide".into());
-                gi
-            }
-            // Without a guide image, the albedo stands in for material colour × AO.
-            (None, Some((a, _))) => a.clone(),
-            (None, None) => return Err(NO_GUIDE),
-        };
-        let mut input = DenoiseInput::new(&color, &guide);
+        let albedo = other(&self.albedo, Layer::Albedo, "albedo")?;
+        let normal = other(&self.normal, Layer::Normal, "normal")?;
+        let guide = other(&self.guide, Layer::Guide, "guide")?;
+        let albedo_normal = albedo.clone().zip(normal);
+        // Without a guide image, the albedo stands in for material colour × AO, and without an
+        // albedo the noisy colour itself.
+        let stand_in = guide.clone().or(albedo).unwrap_or_else(|| color.image.clone());
+        let mut input = DenoiseInput::new(&color.image, &stand_in);
         if let Some((a, n)) = &albedo_normal {
             input = input.albedo_normal(a, n);
         }
         let t = Instant::now();
         let image = finite(denoiser.denoise(&input)?);
         let denoise_s = t.elapsed().as_secs_f64();
-        let guide = self.guide.as_ref().map(|_| guide);
         Ok(Denoised {
-            nonfinite_input_values: count_nonfinite(&color),
+            nonfinite_input_values: count_nonfinite(&color.image),
             image,
-            color,
+            color: color.image,
+            color_file: color.exr,
+            color_half: color.half,
             guide,
             albedo_normal,
             inputs,
@@ -122,6 +146,96 @@ impl DenoiseSources {
             passes: denoiser.ensemble_passes(),
         })
     }
+
+    /// The prefix the caller named for `layer`, if any.
+    fn named(&self, layer: Layer) -> Option<&str> {
+        self.layer_names.iter().find(|(l, _)| *l == layer).map(|(_, p)| p.as_str())
+    }
+}
+
+/// One input as read: its image, and for an EXR the whole file with the three channels it
+/// came from.
+struct Source {
+    image: HdrImage,
+    exr: Option<(Layers, [String; 3])>,
+    half: bool,
+}
+
+/// The EXR files a denoise has read, each read once however many inputs it holds.
+#[derive(Default)]
+struct InputFiles {
+    exr: HashMap<PathBuf, Layers>,
+}
+
+impl InputFiles {
+    /// Reads the image of `layer` from `path`: from an EXR that layer under rtd's or another
+    /// renderer's name, or under `prefix` when the caller named one ([`Layers::find_channels`]),
+    /// else its bare `R,G,B`; PFM/PHM as linear RGB; PNG/JPEG sRGB-decoded, with 8- or 16-bit
+    /// normals decoded from n·0.5 + 0.5.
+    fn read(&mut self, path: &Path, layer: Layer, prefix: Option<&str>) -> Result<Source, PipelineError> {
+        let vector = layer.channels() == Channels::Xyz;
+        let format = ImageFormat::from_path(path)?;
+        let source = match format {
+            ImageFormat::Exr => {
+                if !self.exr.contains_key(path) {
+                    self.exr.insert(path.to_path_buf(), rtd_image::read_exr(path)?);
+                }
+                let layers = &self.exr[path];
+                let bare = || Some(Layer::Beauty.channel_names()).and_then(|n| <[String; 3]>::try_from(n).ok());
+                let names = layers.find_channels(layer, prefix).or_else(|| {
+                    (prefix.is_none() && layer != Layer::Beauty)
+                        .then(bare)
+                        .flatten()
+                        .filter(|n| n.iter().all(|c| layers.get(c).is_some()))
+                });
+                let names = names.ok_or_else(|| PipelineError::Input {
+                    path: path.to_path_buf(),
+                    message: missing_layer(layer, prefix, layers),
+                })?;
+                let half = names.iter().all(|n| layers.half_channels.contains(n));
+                Source { image: layers.image_in(&names), exr: Some((layers.clone(), names)), half }
+            }
+            ImageFormat::Pfm | ImageFormat::Phm => {
+                Source { image: rtd_image::read_pfm(path)?, exr: None, half: format == ImageFormat::Phm }
+            }
+            ImageFormat::Png | ImageFormat::Jpeg => {
+                let img = rtd_image::read_ldr(path)?;
+                let image = if vector {
+                    // Normal maps store n·0.5 + 0.5 (before sRGB decoding, which read_ldr undid).
+                    let e = |x: f32| rtd_image::linear_to_srgb(x) * 2.0 - 1.0;
+                    let px = img.pixels.iter().map(|p| Vec3::new(e(p.x), e(p.y), e(p.z))).collect();
+                    HdrImage::from_pixels(img.width, img.height, px)
+                } else {
+                    img
+                };
+                Source { image, exr: None, half: false }
+            }
+        };
+        Ok(source)
+    }
+}
+
+/// What a file without the layer rtd looked for says: the names it tried and the layers found.
+fn missing_layer(layer: Layer, prefix: Option<&str>, layers: &Layers) -> String {
+    let what = match layer {
+        Layer::Beauty => "colour".to_string(),
+        other => other.prefix(),
+    };
+    let tried = match prefix {
+        Some(p) => format!("the layer named {p:?}"),
+        None => {
+            let mut names: Vec<String> = Some(layer.prefix()).filter(|p| !p.is_empty()).into_iter().collect();
+            names.extend(layer.studio_names().iter().map(|n| n.to_string()));
+            if layer == Layer::Beauty {
+                "bare R,G,B and passes named ".to_string() + &names.join(", ")
+            } else {
+                format!("passes named {}, and bare R,G,B", names.join(", "))
+            }
+        }
+    };
+    let found: Vec<String> =
+        layers.prefixes().into_iter().map(|p| if p.is_empty() { "(bare channels)".into() } else { p }).collect();
+    format!("no {what} layer (looked for {tried}; layers found: {})", found.join(", "))
 }
 
 /// A denoised image with the inputs it was made from.
@@ -130,6 +244,11 @@ pub struct Denoised {
     pub image: HdrImage,
     /// The noisy colour as read.
     pub color: HdrImage,
+    /// The colour's EXR file, when it was one: every channel, and the three the colour came
+    /// from (which the denoised image replaces on output).
+    pub color_file: Option<(Layers, [String; 3])>,
+    /// The colour was stored as half floats (EXR or PHM): outputs are too.
+    pub color_half: bool,
     /// The guide image, when one was given.
     pub guide: Option<HdrImage>,
     /// Albedo and normal, when given.
@@ -147,28 +266,62 @@ pub struct Denoised {
 }
 
 impl Denoised {
-    /// Writes the result to `path`, the format chosen by its extension. An EXR holds the
-    /// denoised `R,G,B` and the inputs as layers (`noisy.*`, and `guide.*`, `albedo.*`,
-    /// `normal.*` where given); a PNG or JPEG the denoised image, exposed by `exposure` stops
-    /// and clamped.
+    /// Writes the result to `path`, the format chosen by its extension.
+    ///
+    /// - **EXR**, colour read from an EXR: every channel of that file, with the denoised image
+    ///   in place of the noisy colour's three channels (alpha and other passes kept, half
+    ///   channels stay half), plus rtd's `guide.*`, `albedo.*`, `normal.*` for inputs from other
+    ///   files that the output lacks.
+    /// - **EXR**, colour from another format: the denoised `R,G,B` and the inputs as layers
+    ///   (`noisy.*`, and `guide.*`, `albedo.*`, `normal.*` where given); half when the colour
+    ///   was (PHM).
+    /// - **PFM/PHM**: the denoised image, 32- or 16-bit.
+    /// - **PNG/JPEG**: the denoised image, exposed by `exposure` stops and clamped.
     pub fn write(&self, path: &Path, exposure: f32) -> Result<(), PipelineError> {
         match ImageFormat::from_path(path)? {
-            ImageFormat::Exr => {
-                let mut layers = Layers::new(self.image.width, self.image.height);
-                layers.put_image(Layer::Beauty, &self.image);
-                layers.put_image(Layer::Noisy, &self.color);
-                if let Some(g) = &self.guide {
-                    layers.put_image(Layer::Guide, g);
-                }
-                if let Some((a, n)) = &self.albedo_normal {
-                    layers.put_image(Layer::Albedo, a);
-                    layers.put_image(Layer::Normal, n);
-                }
-                rtd_image::write_exr(path, &layers)?
+            ImageFormat::Exr => rtd_image::write_exr(path, &self.exr_layers())?,
+            format @ (ImageFormat::Pfm | ImageFormat::Phm) => {
+                rtd_image::write_pfm(path, &self.image, format == ImageFormat::Phm)?
             }
             ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(path, &self.image, exposure, Tonemap::Clamp)?,
         }
         Ok(())
+    }
+
+    /// The channels an EXR output holds ([`Denoised::write`]).
+    pub fn exr_layers(&self) -> Layers {
+        let mut layers = match &self.color_file {
+            Some((file, names)) => {
+                let mut layers = file.clone();
+                for (c, name) in names.iter().enumerate() {
+                    layers.set_samples(name, self.image.channel(c));
+                }
+                layers
+            }
+            None => {
+                let mut layers = Layers::new(self.image.width, self.image.height);
+                layers.put_image(Layer::Beauty, &self.image);
+                layers.put_image(Layer::Noisy, &self.color);
+                if self.color_half {
+                    layers.half_channels =
+                        [Layer::Beauty, Layer::Noisy].iter().flat_map(|l| l.channel_names()).collect();
+                }
+                layers
+            }
+        };
+        let mut add = |layer: Layer, image: &HdrImage| {
+            if layers.find_channels(layer, None).is_none() {
+                layers.put_image(layer, image);
+            }
+        };
+        if let Some(g) = &self.guide {
+            add(Layer::Guide, g);
+        }
+        if let Some((a, n)) = &self.albedo_normal {
+            add(Layer::Albedo, a);
+            add(Layer::Normal, n);
+        }
+        layers
     }
 
     /// What `rtd denoise --report` writes for this result, read from `color` and written to
@@ -200,46 +353,6 @@ impl DenoiseOutcome {
             self.width, self.height, self.denoise_s, self.denoise_model
         )
     }
-}
-
-/// Reads the image of `layer` from `path`: from an EXR (one part or several) that layer under
-/// rtd's or another renderer's name ([`Layers::find_image`]), else the beauty; from PNG/JPEG the
-/// sRGB-decoded RGB, with 8-bit normals decoded from n·0.5 + 0.5.
-fn read_layer(path: &Path, layer: Layer) -> Result<HdrImage, PipelineError> {
-    let vector = layer.channels() == Channels::Xyz;
-    let img = match ImageFormat::from_path(path)? {
-        ImageFormat::Exr => {
-            let layers = rtd_image::read_exr(path)?;
-            let found = layers.find_image(layer).or_else(|| layers.find_image(Layer::Beauty));
-            found.ok_or_else(|| PipelineError::Input {
-                path: path.to_path_buf(),
-                message: missing_layer(layer, &layers),
-            })?
-        }
-        ImageFormat::Png | ImageFormat::Jpeg => {
-            let img = rtd_image::read_ldr(path)?;
-            if vector {
-                // 8-bit normal maps store n·0.5 + 0.5 (before sRGB decoding, which read_ldr undid).
-                let e = |x: f32| rtd_image::linear_to_srgb(x) * 2.0 - 1.0;
-                let px = img.pixels.iter().map(|p| Vec3::new(e(p.x), e(p.y), e(p.z))).collect();
-                HdrImage::from_pixels(img.width, img.height, px)
-            } else {
-                img
-            }
-        }
-    };
-    Ok(img)
-}
-
-/// What a file without the layer rtd looked for says: the names it tried and the layers found.
-fn missing_layer(layer: Layer, layers: &Layers) -> String {
-    let mut tried: Vec<String> =
-        Some(layer.prefix()).filter(|p| !p.is_empty()).map(|p| format!("`{p}.*`")).into_iter().collect();
-    tried.extend(layer.studio_names().iter().map(|n| format!("`*.{n}.*`")));
-    tried.push("R,G,B".into());
-    let found: Vec<String> =
-        layers.prefixes().into_iter().map(|p| if p.is_empty() { "(bare channels)".into() } else { p }).collect();
-    format!("no {} channels (layers found: {})", tried.join(", "), found.join(", "))
 }
 
 fn same_size(path: &Path, img: &HdrImage, color: &HdrImage) -> Result<(), PipelineError> {
@@ -275,17 +388,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_unusable_set_of_inputs_is_refused_before_any_file_is_read() {
-        let with = |guide: bool, albedo: bool, normal: bool| DenoiseSources {
-            color: "missing.exr".into(),
-            guide: guide.then(|| "g.exr".into()),
-            albedo: albedo.then(|| "a.exr".into()),
-            normal: normal.then(|| "n.exr".into()),
+    fn a_normal_without_an_albedo_is_refused_before_any_file_is_read() {
+        let with = |guide: bool, albedo: bool, normal: bool| {
+            DenoiseSources::new("missing.exr")
+                .guide(guide.then(|| "g.exr".into()))
+                .albedo(albedo.then(|| "a.exr".into()))
+                .normal(normal.then(|| "n.exr".into()))
         };
-        assert!(with(true, false, false).check().is_ok());
-        assert!(with(false, true, true).check().is_ok());
-        assert!(with(true, true, true).check().is_ok());
-        for (g, a, n) in [(false, false, false), (false, true, false), (true, false, true)] {
+        for (g, a, n) in
+            [(true, false, false), (false, true, true), (true, true, true), (false, false, false), (false, true, false)]
+        {
+            assert!(with(g, a, n).check().is_ok(), "{g} {a} {n}");
+        }
+        for (g, a, n) in [(false, false, true), (true, false, true)] {
             assert!(matches!(with(g, a, n).check(), Err(PipelineError::Sources(_))), "{g} {a} {n}");
         }
     }

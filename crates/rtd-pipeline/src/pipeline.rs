@@ -230,8 +230,9 @@ impl PipelineRun {
 
     /// Writes the run to `path`, the format chosen by its extension. An EXR holds the film's
     /// layers (beauty, albedo, normal, depth), the guide pass's (guide, albedo, normal, depth,
-    /// AO) and, when denoised, the denoised beauty with the noisy one as `noisy`. A PNG or JPEG
-    /// holds [`PipelineRun::image`], exposed by `exposure` stops and tonemapped.
+    /// AO) and, when denoised, the denoised beauty with the noisy one as `noisy`. A PFM or PHM
+    /// holds [`PipelineRun::image`] as linear floats; a PNG or JPEG holds it exposed by
+    /// `exposure` stops and tonemapped.
     pub fn write(&self, path: &Path, exposure: f32, tonemap: Tonemap) -> Result<(), PipelineError> {
         match ImageFormat::from_path(path)? {
             ImageFormat::Exr => {
@@ -244,6 +245,9 @@ impl PipelineRun {
                     layers.put_image(Layer::Beauty, d);
                 }
                 rtd_image::write_exr(path, &layers)?
+            }
+            format @ (ImageFormat::Pfm | ImageFormat::Phm) => {
+                rtd_image::write_pfm(path, &self.image(), format == ImageFormat::Phm)?
             }
             ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(path, &self.image(), exposure, tonemap)?,
         }

@@ -107,10 +107,7 @@
       return "";
     }
     if (!fileOf("color")) return "Choose the noisy render to denoise.";
-    var albedo = !!fileOf("albedo");
-    var normal = !!fileOf("normal");
-    if (albedo !== normal) return "Give both an albedo and a normal image, or a guide instead.";
-    if (!fileOf("guide") && !albedo) return "Give a guide image, or both an albedo and a normal image.";
+    if (fileOf("normal") && !fileOf("albedo")) return "A normal image needs an albedo image too.";
     return "";
   }
 

@@ -137,7 +137,7 @@ fn denoise(
     denoiser: &Denoiser,
 ) -> Result<TaskOutput, ServiceError> {
     let color = find("color").ok_or_else(|| ServiceError::Corrupt("a denoise job without colour".into()))?;
-    let sources = DenoiseSources { color, guide: find("guide"), albedo: find("albedo"), normal: find("normal") };
+    let sources = DenoiseSources::new(color).guide(find("guide")).albedo(find("albedo")).normal(find("normal"));
     let denoised = sources.denoise(denoiser)?;
     let (exr, png, input) = (dir.join("result.exr"), dir.join("result.png"), dir.join("input.png"));
     denoised.write(&exr, 0.0)?;

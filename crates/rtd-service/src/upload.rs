@@ -103,12 +103,7 @@ fn denoise_job(fields: &Fields) -> Result<NewJob, ApiError> {
     }
     // The set of inputs must make sense before any is looked at: the same rule as `rtd denoise`.
     let named = |n: &str| fields.file(n).map(|_| PathBuf::from(n));
-    let sources = DenoiseSources {
-        color: "color".into(),
-        guide: named("guide"),
-        albedo: named("albedo"),
-        normal: named("normal"),
-    };
+    let sources = DenoiseSources::new("color").guide(named("guide")).albedo(named("albedo")).normal(named("normal"));
     sources.check().map_err(|e| ApiError::bad_request(capitalised(&e.to_string())))?;
     let mut inputs = Vec::new();
     let mut size = None;

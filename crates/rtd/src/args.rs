@@ -138,22 +138,37 @@ pub struct TrainLossArgs {
 /// `rtd denoise` options.
 #[derive(Debug, Clone, Args)]
 pub struct DenoiseArgs {
-    /// Noisy colour: .exr (HDR; `R,G,B`) or .png/.jpg (taken as sRGB).
-    #[arg(long)]
+    /// Noisy colour: .exr (any renderer's beauty pass), .pfm/.phm, or .png/.jpg (taken as sRGB).
+    #[arg(long, visible_alias = "hdr")]
     pub color: PathBuf,
-    /// Guide image: material colour × AO (EXR `guide.*` or `R,G,B`, or sRGB PNG/JPEG).
+    /// Guide image: material colour × AO (EXR `guide.*` or `R,G,B`, PFM, or sRGB PNG/JPEG).
     #[arg(long)]
     pub guide: Option<PathBuf>,
-    /// Albedo image (EXR `albedo.*` or `R,G,B`, or sRGB PNG/JPEG).
-    #[arg(long, requires = "normal")]
+    /// Albedo image (EXR `albedo.*`, Blender's `Denoising Albedo`, or `R,G,B`; PFM; or sRGB
+    /// PNG/JPEG). Without --guide it stands in for the guide; alone with --color it is OIDN's
+    /// colour + albedo mode.
+    #[arg(long, visible_alias = "alb")]
     pub albedo: Option<PathBuf>,
-    /// World- or camera-space normals (EXR `normal.X/Y/Z` or `R,G,B`; PNG/JPEG as n·0.5+0.5).
-    #[arg(long, requires = "albedo")]
+    /// Normals, world or camera space (EXR `normal.X/Y/Z`, Blender's `Denoising Normal`, or
+    /// `R,G,B`; PFM; PNG/JPEG as n·0.5+0.5). Needs --albedo.
+    #[arg(long, visible_alias = "nrm", requires = "albedo")]
     pub normal: Option<PathBuf>,
+    /// EXR layer to read the colour from (its name, or the last part of a name such as
+    /// `ViewLayer.Combined`), when rtd's search by pass name does not find it.
+    #[arg(long, value_name = "NAME")]
+    pub layer_color: Option<String>,
+    /// EXR layer to read the albedo from.
+    #[arg(long, value_name = "NAME")]
+    pub layer_albedo: Option<String>,
+    /// EXR layer to read the normal from.
+    #[arg(long, value_name = "NAME")]
+    pub layer_normal: Option<String>,
     /// The denoiser: model and self-ensemble passes.
     #[command(flatten)]
     pub denoiser: DenoiserArgs,
-    /// Output: .exr (the denoised R,G,B with the inputs as noisy.*, guide.*, albedo.*, normal.* layers) or .png/.jpg.
+    /// Output: .exr (the colour file's channels with the denoised colour in place of the noisy,
+    /// or the denoised R,G,B with the inputs as noisy.*, guide.*, albedo.*, normal.* layers),
+    /// .pfm/.phm, or .png/.jpg.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Exposure in stops for 8-bit outputs.

@@ -5,7 +5,7 @@ use rtd_pipeline::{DenoiseOutcome, DenoiseSources};
 
 use crate::args::DenoiseArgs;
 use crate::output::{check_output, check_report_path};
-use rtd_image::write_json;
+use rtd_image::{write_json, Layer};
 
 /// Runs `rtd denoise` and returns its report.
 pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseOutcome> {
@@ -13,16 +13,14 @@ pub fn denoise(args: &DenoiseArgs) -> anyhow::Result<DenoiseOutcome> {
     if let Some(r) = &args.report {
         check_report_path(r)?;
     }
-    let sources = DenoiseSources {
-        color: args.color.clone(),
-        guide: args.guide.clone(),
-        albedo: args.albedo.clone(),
-        normal: args.normal.clone(),
-    };
-    // Refuse an unusable set of inputs before loading the model, in the command line's terms.
-    sources
-        .check()
-        .map_err(|_| anyhow::anyhow!("rtd denoise needs --guide (material colour × AO) or --albedo with --normal"))?;
+    let sources = DenoiseSources::new(&args.color)
+        .guide(args.guide.clone())
+        .albedo(args.albedo.clone())
+        .normal(args.normal.clone())
+        .layer(Layer::Beauty, args.layer_color.clone())
+        .layer(Layer::Albedo, args.layer_albedo.clone())
+        .layer(Layer::Normal, args.layer_normal.clone());
+    sources.check()?;
     let model = args.denoiser.load()?;
     let outcome = sources.run(&model, &args.output, args.exposure)?;
     crate::print_line(&outcome.summary())?;

@@ -47,6 +47,9 @@ pub fn guide(args: &GuideArgs) -> anyhow::Result<GuideReport> {
     let pass = GuidePass::render(&prepared.scene, &prepared.bvh, &loaded.camera, &settings)?;
     match ImageFormat::from_path(&args.output)? {
         ImageFormat::Exr => rtd_image::write_exr(&args.output, &pass.layers())?,
+        format @ (ImageFormat::Pfm | ImageFormat::Phm) => {
+            rtd_image::write_pfm(&args.output, &pass.guide, format == ImageFormat::Phm)?
+        }
         ImageFormat::Png | ImageFormat::Jpeg => rtd_image::write_ldr(&args.output, &pass.guide, 0.0, Tonemap::Clamp)?,
     }
     if !pass.guide.is_finite() {
