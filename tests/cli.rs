@@ -446,3 +446,79 @@ fn environment_map_from_exr() {
     let m = img.mean();
     assert!((m.x - 1.6).abs() < 0.08 && (m.z - 2.4).abs() < 0.12, "floor radiance {m}");
 }
+
+/// `--env` reads Radiance `.hdr` and PFM maps as it reads EXR ones, `--env-strength 2`
+/// doubles every pixel (radiance scaling is exact in binary floating point and light selection
+/// is scale-invariant, so only the film's last bit may differ), and bad environment settings
+/// fail in one line.
+#[test]
+fn environment_maps_from_hdr_and_pfm_and_strength_scales() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (32u32, 16u32);
+    // Values exact in RGBE's shared-exponent encoding, so the three files hold the same sky.
+    let sky = |x: u32, y: u32| match (y < h / 2, x < w / 2) {
+        (true, true) => [2.0f32, 2.0, 3.0],
+        (true, false) => [0.5, 1.0, 0.25],
+        _ => [0.0625; 3],
+    };
+    let img = rtd::image::HdrImage::from_pixels(
+        w,
+        h,
+        (0..w * h).map(|i| glam::Vec3::from_array(sky(i % w, i / w))).collect(),
+    );
+    let mut layers = rtd::image::Layers::new(w, h);
+    layers.put_image(rtd::image::Layer::Beauty, &img);
+    rtd::image::write_exr(&d.join("sky.exr"), &layers).unwrap();
+    rtd::image::write_pfm(&d.join("sky.pfm"), &img, false).unwrap();
+    let rgbe = image::Rgb32FImage::from_fn(w, h, |x, y| image::Rgb(sky(x, y)));
+    image::DynamicImage::ImageRgb32F(rgbe).save(d.join("sky.hdr")).unwrap();
+    // A floor and a wall, lit by the sky alone (no emitter whose share of light selection the
+    // strength would change).
+    std::fs::write(d.join("p.mtl"), "newmtl lambert\nKd 0.8 0.6 0.4\nKs 0 0 0\n").unwrap();
+    let obj = "mtllib p.mtl\nusemtl lambert\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv -1 1 -1\nv 1 1 -1\n\
+               f 1 4 3 2\nf 1 2 6 5\n";
+    std::fs::write(d.join("p.obj"), obj).unwrap();
+    let c = d.join("p.obj").display().to_string();
+    let render = |env: &str, extra: &[&str]| {
+        let out = d.join(format!("out-{}-{}.exr", env.replace('.', "-"), extra.join("_")));
+        let sky = d.join(env);
+        let args = ["render", &c, "-o", out.to_str().unwrap(), "--env", sky.to_str().unwrap(), "--spp", "4"];
+        let view = ["--look-from", "0.3,1.5,3", "--look-at", "0,0.3,0", "--fov", "50"];
+        let o = rtd(&[&args[..], &["--width", "16", "--height", "16", "-q"], &view, extra].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        rtd::image::read_exr(&out).unwrap().image(rtd::image::Layer::Beauty).unwrap()
+    };
+    let exr = render("sky.exr", &[]);
+    assert_eq!(render("sky.hdr", &[]), exr);
+    assert_eq!(render("sky.pfm", &[]), exr);
+    let doubled = render("sky.hdr", &["--env-strength", "2"]);
+    let twice: Vec<glam::Vec3> = exr.pixels.iter().map(|p| *p * 2.0).collect();
+    // Equal to the last bits the film's fixed-point sums keep (their grid is absolute, so a
+    // doubled value can round once differently).
+    let off =
+        |(a, b): (&glam::Vec3, &glam::Vec3)| ((*a - *b).abs() / b.abs().max(glam::Vec3::splat(1e-6))).max_element();
+    let worst = doubled.pixels.iter().zip(&twice).map(off).fold(0.0f32, f32::max);
+    assert!(worst < 1e-6, "strength 2 is not twice the image: relative difference {worst}");
+    assert_ne!(render("sky.hdr", &["--env-rotation", "-90"]), exr, "a turn of a lopsided sky shows");
+    // Bad settings and files: one line, no output.
+    let o = d.join("bad.exr");
+    let bad = |extra: &[&str]| rtd(&[&["render", &c, "-o", o.to_str().unwrap(), "-q"][..], extra].concat());
+    let sky_hdr = d.join("sky.hdr");
+    let sky_hdr = sky_hdr.to_str().unwrap();
+    let usage = bad(&["--env", sky_hdr, "--env-strength", "-1"]);
+    assert_fails(&usage, "--env-strength");
+    assert_eq!(usage.status.code(), Some(2));
+    assert_fails(&bad(&["--env-rotation", "10"]), "--env");
+    assert_fails(&bad(&["--env", sky_hdr, "--env-rotation", "inf"]), "finite");
+    let corrupt = d.join("corrupt.hdr");
+    std::fs::write(&corrupt, b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 16 +X 16\n\x02\x02").unwrap();
+    assert_fails(&bad(&["--env", corrupt.to_str().unwrap()]), "corrupt.hdr");
+    let huge = d.join("huge.hdr");
+    std::fs::write(&huge, b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n").unwrap();
+    assert_fails(&bad(&["--env", huge.to_str().unwrap()]), "huge.hdr: image size 100000x100000 is outside");
+    let tiff = d.join("sky.tiff");
+    std::fs::write(&tiff, b"II*\0").unwrap();
+    assert_fails(&bad(&["--env", tiff.to_str().unwrap()]), "an environment map must be .exr, .hdr, .pfm or .phm");
+    assert!(!o.exists());
+}

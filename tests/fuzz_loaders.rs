@@ -65,6 +65,7 @@ fn targets() -> Vec<Target> {
         Target { name: "png", file: "image.png", load: |p, _| drop(rtd::image::read_ldr(p)) },
         Target { name: "jpeg", file: "image.jpg", load: |p, _| drop(rtd::image::read_ldr(p)) },
         Target { name: "pfm", file: "image.pfm", load: |p, _| drop(rtd::image::read_pfm(p)) },
+        Target { name: "hdr", file: "sky.hdr", load: |p, _| drop(rtd::image::read_rgbe(p)) },
         Target {
             name: "model",
             file: "model.bpk",
@@ -96,6 +97,7 @@ fn corpus(target: &str, dir: &Path) -> Vec<Vec<u8>> {
         "exr" => vec![exr(dir, &["R", "G", "B"]), exr(dir, &["R", "G", "B", "albedo.R", "albedo.G", "albedo.B"])],
         "png" => vec![ldr(image::ImageFormat::Png), tiny_png()],
         "jpeg" => vec![ldr(image::ImageFormat::Jpeg)],
+        "hdr" => vec![rgbe(9, 4), rgbe(40, 3)],
         "pfm" => vec![pfm(false), pfm(true), b"Pf 2 1 1.0\n\0\0\0\0\0\0\0\0".to_vec()],
         "model" => vec![std::fs::read(repo.join("models/rtd-denoiser.bpk")).unwrap()],
         "upload" => {
@@ -113,6 +115,14 @@ fn corpus(target: &str, dir: &Path) -> Vec<Vec<u8>> {
 const OBJ: &str = "mtllib scene.mtl\no box\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
 usemtl red\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/1/1\n";
 const MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\nKs 0.04 0.04 0.04\nNs 20\nKe 0 0 0\nd 1\nNi 1.5\nillum 2\n";
+
+/// A Radiance `.hdr` of a gradient (rows of 8 to 0x7fff pixels are run-length encoded).
+fn rgbe(w: u32, h: u32) -> Vec<u8> {
+    let img = image::Rgb32FImage::from_fn(w, h, |x, y| image::Rgb([x as f32 * 0.3, y as f32 + 0.5, 2.0]));
+    let mut out = std::io::Cursor::new(Vec::new());
+    image::DynamicImage::ImageRgb32F(img).write_to(&mut out, image::ImageFormat::Hdr).unwrap();
+    out.into_inner()
+}
 
 /// A 5×3 PFM (or PHM) of a gradient.
 fn pfm(half: bool) -> Vec<u8> {

@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use glam::Vec3;
 use rtd::render::RenderSettings;
-use rtd::scene::{Camera, Environment, Light, Material, Projection, Scene};
+use rtd::scene::{Camera, EnvMap, Environment, Light, Material, Projection, Scene};
 
 /// A convex white Lambertian object under a uniform environment of radiance 1 reflects
 /// exactly 1 everywhere: any lost or created energy shows up as a deviation.
@@ -140,8 +140,33 @@ fn environment_map_matches_constant_environment() {
         mean(&render(scene, cam, RenderSettings::new(32, 32).seed(4), 32).beauty().pixels)
     };
     let a = build(Environment::Constant(Vec3::splat(0.7)));
-    let b = build(Environment::Map(img));
+    let b = build(Environment::Map(EnvMap { image: img, rotation: 2.0 }));
     assert!((a - b).abs() < 0.01 * a, "constant {a} vs map {b}");
+}
+
+/// `--env-rotation 90` is the same map with its columns moved a quarter turn: a scene lit by
+/// one bright quadrant of sky renders the same either way (what reaches the sphere is the
+/// same light from the same directions; only the sampling's rounding differs).
+#[test]
+fn a_turned_environment_equals_the_map_moved_by_whole_texels() {
+    let (w, h) = (32usize, 16usize);
+    let sky = |x: usize, y: usize| if x < w / 4 && y < h / 2 { Vec3::new(6.0, 5.0, 4.0) } else { Vec3::splat(0.05) };
+    let image = |shift: usize| {
+        let px = (0..w * h).map(|i| sky((i % w + shift) % w, i / w)).collect();
+        rtd::image::HdrImage::from_pixels(w as u32, h as u32, px)
+    };
+    let build = |env: Environment| {
+        let mut scene = Scene { environment: env, ..Scene::default() };
+        scene.materials.push(material(Vec3::new(0.8, 0.5, 0.3), 0.5, 0.0, 0.0));
+        sphere(&mut scene, Vec3::ZERO, 1.0, 0, 48, 24);
+        let cam = Camera::look_at(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, 30.0);
+        mean(&render(scene, cam, RenderSettings::new(32, 32).seed(4), 64).beauty().pixels)
+    };
+    let turned = build(Environment::Map(EnvMap { image: image(0), rotation: std::f32::consts::FRAC_PI_2 }));
+    let moved = build(Environment::Map(EnvMap::new(image(w / 4))));
+    let unturned = build(Environment::Map(EnvMap::new(image(0))));
+    assert!((turned - moved).abs() < 0.01 * moved, "turned {turned} vs moved {moved}");
+    assert!((turned - unturned).abs() > 0.1 * unturned, "the turn must change the picture: {turned} vs {unturned}");
 }
 
 /// A Lambertian ground of albedo ρ under a uniform environment of radiance 1 reflects ρ. The

@@ -6,6 +6,7 @@
 //! - [`Layer`]: the EXR layer vocabulary every writer and reader shares.
 //! - LDR output (PNG/JPEG, 8-bit sRGB) with exposure and a [`Tonemap`]; PNG input of 8 or 16
 //!   bits.
+//! - Radiance `.hdr` input ([`read_rgbe`]) for environment maps.
 //! - PFM/PHM in and out ([`read_pfm`], [`write_pfm`]), the format of `oidnDenoise`.
 //! - Every write is atomic and durable: a temporary file in the target directory, `fsync`,
 //!   then a rename.
@@ -26,6 +27,7 @@ pub mod metrics;
 mod parser_guard;
 mod pfm;
 mod progress;
+mod rgbe;
 mod sniff;
 
 pub use atomic::{parent_dir, remove_orphans_once, write_atomic, write_bytes_atomic, write_json};
@@ -38,6 +40,7 @@ pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_
 pub use parser_guard::{contain_panic, contained_panics};
 pub use pfm::{decode_pfm, encode_pfm, read_pfm, read_pfm_header, write_pfm, PfmHeader};
 pub use progress::{Progress, Quiet};
+pub use rgbe::read_rgbe;
 pub use sniff::{check_image_size, read_image_header, ImageHeader};
 
 /// Largest width or height rtd accepts for any image it reads, renders, denoises or writes.

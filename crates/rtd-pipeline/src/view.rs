@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rtd_render::RenderScene;
-use rtd_scene::{Camera, Environment};
+use rtd_scene::{Camera, Environment, EnvironmentChoice};
 
 use crate::PipelineError;
 
@@ -48,12 +48,17 @@ pub struct SceneView {
 
 impl SceneView {
     /// Loads `path`, replaces its environment with `environment` if given (`R,G,B` radiance or
-    /// an equirectangular `.exr`), picks the camera and builds the BVH and light set.
-    pub fn load(path: &Path, camera: &CameraChoice, environment: Option<&str>) -> Result<Self, PipelineError> {
+    /// an equirectangular map, with its strength and turn), picks the camera and builds the BVH
+    /// and light set.
+    pub fn load(
+        path: &Path,
+        camera: &CameraChoice,
+        environment: Option<&EnvironmentChoice>,
+    ) -> Result<Self, PipelineError> {
         let t = Instant::now();
         let mut scene = rtd_scene::load_scene(path)?;
         if let Some(env) = environment {
-            scene.environment = Environment::parse(env)?;
+            scene.environment = Environment::load(env)?;
         }
         let load_s = t.elapsed().as_secs_f64();
         let camera_error = |source| PipelineError::Camera { path: path.to_path_buf(), source };

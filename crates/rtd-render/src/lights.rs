@@ -7,7 +7,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-use rtd_scene::{Environment, Light, Scene};
+use rtd_scene::{EnvMap, Environment, Light, Scene};
 
 use crate::sampling::{sample_triangle, sample_uniform_sphere, Distribution1D};
 use rtd_image::luminance;
@@ -113,8 +113,8 @@ impl LightSet {
         if !scene.environment.is_black() {
             let mean = match &scene.environment {
                 Environment::Constant(c) => luminance(*c),
-                Environment::Map(img) => {
-                    let d = build_env_distribution(img);
+                Environment::Map(map) => {
+                    let d = build_env_distribution(&map.image);
                     // Mean radiance over the sphere: ∫ L sinθ dθ dφ / 4π = integral · 2π² / 4π.
                     let m = d.marginal.integral * PI * 0.5;
                     env_dist = Some(d);
@@ -161,7 +161,7 @@ impl LightSet {
         let Some(i) = self.env_index else { return 0.0 };
         let sel = self.select.pmf(i as usize);
         match (env, &self.env_dist) {
-            (Environment::Map(img), Some(d)) => sel * env_map_pdf(d, img.width, img.height, dir),
+            (Environment::Map(map), Some(d)) => sel * env_map_pdf(d, map, dir),
             _ => sel / (4.0 * PI),
         }
     }
@@ -200,7 +200,7 @@ impl LightSet {
             LightSource::Punctual(l) => Some(sample_punctual(&l, p, sel)),
             LightSource::Environment => {
                 let (wi, pdf_dir) = match (&scene.environment, &self.env_dist) {
-                    (Environment::Map(_), Some(d)) => sample_env_map(d, u)?,
+                    (Environment::Map(map), Some(d)) => sample_env_map(d, map, u)?,
                     _ => (sample_uniform_sphere(u), 1.0 / (4.0 * PI)),
                 };
                 let li = scene.environment.radiance(wi);
@@ -233,13 +233,25 @@ fn sample_punctual(l: &Light, p: Vec3, sel: f32) -> LightSample {
     }
 }
 
-/// Row and column distributions over an equirect map, weighted by luminance × sinθ.
+/// Row and column distributions over an equirect map, weighted by luminance × sinθ. A texel's
+/// weight is the largest luminance of it and its 8 neighbours (wrapping in u, clamped at the
+/// poles), so every direction bilinear lookup lights has a non-zero pdf.
 fn build_env_distribution(img: &rtd_image::HdrImage) -> EnvDistribution {
     let (w, h) = (img.width as usize, img.height as usize);
+    let lum: Vec<f32> = img.pixels.iter().map(|&p| luminance(p)).collect();
     let rows: Vec<Distribution1D> = (0..h)
         .map(|y| {
             let sin_theta = (PI * (y as f32 + 0.5) / h as f32).sin();
-            let weights: Vec<f32> = (0..w).map(|x| luminance(img.pixels[y * w + x]) * sin_theta).collect();
+            let near = |x: usize| {
+                let mut m = 0.0f32;
+                for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                    for xx in [(x + w - 1) % w, x, (x + 1) % w] {
+                        m = m.max(lum[yy * w + xx]);
+                    }
+                }
+                m
+            };
+            let weights: Vec<f32> = (0..w).map(|x| near(x) * sin_theta).collect();
             Distribution1D::new(&weights)
         })
         .collect();
@@ -248,13 +260,13 @@ fn build_env_distribution(img: &rtd_image::HdrImage) -> EnvDistribution {
 }
 
 /// Samples a direction from the map distribution: (direction, solid-angle pdf).
-fn sample_env_map(d: &EnvDistribution, u: Vec2) -> Option<(Vec3, f32)> {
+fn sample_env_map(d: &EnvDistribution, map: &EnvMap, u: Vec2) -> Option<(Vec3, f32)> {
     if d.marginal.integral <= 0.0 {
         return None;
     }
     let (v, pdf_v, row) = d.marginal.sample_continuous(u.y);
     let (uu, pdf_u, _) = d.rows[row].sample_continuous(u.x);
-    let dir = Environment::uv_to_dir(Vec2::new(uu, v));
+    let dir = map.dir(Vec2::new(uu, v));
     let sin_theta = (v * PI).sin();
     if sin_theta <= 0.0 {
         return None;
@@ -264,11 +276,12 @@ fn sample_env_map(d: &EnvDistribution, u: Vec2) -> Option<(Vec3, f32)> {
 }
 
 /// Solid-angle pdf of [`sample_env_map`] for direction `dir`.
-fn env_map_pdf(d: &EnvDistribution, w: u32, h: u32, dir: Vec3) -> f32 {
+fn env_map_pdf(d: &EnvDistribution, map: &EnvMap, dir: Vec3) -> f32 {
     if d.marginal.integral <= 0.0 {
         return 0.0;
     }
-    let uv = Environment::dir_to_uv(dir);
+    let (w, h) = (map.image.width, map.image.height);
+    let uv = map.uv(dir);
     let x = ((uv.x * w as f32) as i64).rem_euclid(w as i64) as usize;
     let y = ((uv.y * h as f32) as usize).min(h as usize - 1);
     let sin_theta = (uv.y * PI).sin();
@@ -296,15 +309,16 @@ mod tests {
             *p = Vec3::splat(1.0 + (i % 7) as f32 * 3.0);
         }
         let d = build_env_distribution(&img);
+        let map = EnvMap { image: img, rotation: 1.3 };
         let mut sum_inv = 0.0f64;
         let n = 20000;
         for i in 0..n {
             let mut s = crate::Sampler::new(1, 0, i);
-            let (dir, pdf) = sample_env_map(&d, s.get_2d()).unwrap();
-            let uv = Environment::dir_to_uv(dir) * Vec2::new(16.0, 8.0);
+            let (dir, pdf) = sample_env_map(&d, &map, s.get_2d()).unwrap();
+            let uv = map.uv(dir) * Vec2::new(16.0, 8.0);
             let near_edge = |x: f32| (x - x.round()).abs() < 1e-3;
             if !near_edge(uv.x) && !near_edge(uv.y) {
-                let p2 = env_map_pdf(&d, 16, 8, dir);
+                let p2 = env_map_pdf(&d, &map, dir);
                 assert!((pdf - p2).abs() <= 1e-3 * pdf, "{pdf} vs {p2} at {uv}");
             }
             sum_inv += 1.0 / pdf as f64;

@@ -24,7 +24,7 @@ mod texture;
 pub use aabb::Aabb;
 pub use camera::{Camera, Projection};
 pub use camera_choice::CameraError;
-pub use environment::Environment;
+pub use environment::{EnvMap, Environment, EnvironmentChoice};
 pub use error::{AccessorProblem, SceneError};
 pub use gltf_import::{load_gltf, SUPPORTED_GLTF_EXTENSIONS};
 pub use light::{Light, LUMENS_PER_WATT};

@@ -440,9 +440,16 @@ pub struct RenderArgs {
     /// Maximum path depth (bounces).
     #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=rtd_render::MAX_DEPTH as i64))]
     pub max_depth: u32,
-    /// Environment: R,G,B radiance or an equirectangular .exr map.
+    /// Environment: R,G,B radiance or an equirectangular map (.exr, .hdr, .pfm or .phm).
     #[arg(long)]
     pub env: Option<String>,
+    /// Multiplies the environment's radiance (Blender's Background strength).
+    #[arg(long, default_value_t = 1.0, requires = "env", allow_hyphen_values = true, value_parser = parse_non_negative)]
+    pub env_strength: f32,
+    /// Turns the environment map about the up axis by this many degrees, counter-clockwise seen
+    /// from above (Blender's Z rotation in the world's Mapping node).
+    #[arg(long, default_value_t = 0.0, requires = "env", allow_hyphen_values = true, value_parser = parse_finite)]
+    pub env_rotation: f32,
     /// Clamp each sample's largest channel to this value (biased; off by default).
     #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]
     pub clamp: Option<f32>,
@@ -520,6 +527,20 @@ fn parse_positive(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
         _ => Err(format!("'{s}' is not a positive finite number")),
+    }
+}
+
+fn parse_non_negative(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v >= 0.0 && v.is_finite() => Ok(v),
+        _ => Err(format!("'{s}' is not a finite number ≥ 0")),
+    }
+}
+
+fn parse_finite(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("'{s}' is not a finite number")),
     }
 }
 

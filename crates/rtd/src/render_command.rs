@@ -6,6 +6,7 @@ use rtd_guide::GuideSettings;
 use rtd_image::Tonemap;
 use rtd_pipeline::{Budget, Pipeline, RenderReport};
 use rtd_render::RenderSettings;
+use rtd_scene::EnvironmentChoice;
 
 use crate::args::{RenderArgs, TonemapArg};
 use crate::exit::Interrupted;
@@ -22,7 +23,11 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
     }
     // Load the model first: a bad model should fail before minutes of rendering.
     let model = if args.denoise { Some(args.denoiser().load()?) } else { None };
-    let (loaded, (width, height)) = view.load(args.env.as_deref())?;
+    let env = args
+        .env
+        .as_ref()
+        .map(|e| EnvironmentChoice::new(e.as_str()).strength(args.env_strength).rotation_deg(args.env_rotation));
+    let (loaded, (width, height)) = view.load(env.as_ref())?;
     let settings = RenderSettings::new(width, height)
         .seed(args.seed)
         .max_depth(args.max_depth)
