@@ -84,6 +84,9 @@ fn emission_of_1e9_scales_the_image_linearly() {
 fn roughness_0_and_1_with_ior_1_and_4_keep_a_furnace_at_or_below_one() {
     // Expectation: in a white furnace (environment 1) a sphere of any of these materials
     // reflects and transmits at most what arrives: the image mean is finite and ≤ 1 + noise.
+    // White opaque ones, plastic or metal, keep all of it at any roughness (the layering and
+    // the multiple-scattering term): the mean is 1 within noise and the tables' 1%. Rough glass
+    // is not compensated yet and only holds to ≤ 1.
     for roughness in [0.0, 1.0] {
         for ior in [1.0, 4.0] {
             for (metallic, transmission) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
@@ -100,6 +103,9 @@ fn roughness_0_and_1_with_ior_1_and_4_keep_a_furnace_at_or_below_one() {
                 assert!(m.is_finite() && film.nonfinite_samples == 0, "{what}: non-finite");
                 eprintln!("{what}: furnace mean {m:.4}");
                 assert!(m <= 1.02, "{what}: furnace mean {m} > 1");
+                if transmission == 0.0 {
+                    assert!(m >= 0.98, "{what}: furnace mean {m}: energy lost");
+                }
             }
         }
     }

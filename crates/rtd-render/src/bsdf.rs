@@ -4,11 +4,16 @@
 //! f = opacity · [ (1−m)(1−t)(diffuse + specular layer) + (1−m)t·dielectric + m·conductor ]
 //!   + (1−opacity) · pass-through
 //!
-//! - diffuse: Lambert × (1 − s·F(cos_o))(1 − s·F(cos_i)), a reciprocal energy split with the layer;
+//! - diffuse: Lambert × (1 − E_L(cos_o))(1 − E_L(cos_i)) / (1 − E_L,avg), where E_L is the
+//!   specular layer's directional albedo ([`crate::energy`]): albedo-scaled layering, reciprocal,
+//!   so a white layered surface reflects all it receives (what the layer does not reflect, the
+//!   diffuse does);
 //! - specular layer: GGX reflection, Schlick Fresnel with F0 = ((η−1)/(η+1))² × specular colour, × s;
 //! - dielectric: rough or smooth GGX reflection + refraction with exact Fresnel (Walter et al. 2007),
 //!   transmission tinted by the base colour and scaled by 1/η² for radiance;
-//! - conductor: GGX with Schlick Fresnel, F0 = base colour.
+//! - conductor: GGX with Schlick Fresnel, F0 = base colour, plus Kulla–Conty's multiple-scattering
+//!   term F_ms (1 − E(cos_o))(1 − E(cos_i)) / (π (1 − E_avg)), so rough metal keeps the energy
+//!   single scattering loses (glass is not compensated yet).
 //!
 //! Sampling picks one lobe by an estimate of its albedo; non-delta samples are weighted by the
 //! full mixture pdf (one-sample MIS over lobes). Opaque lobes are two-sided.
@@ -17,6 +22,7 @@ use glam::{Vec2, Vec3};
 use rtd_image::luminance;
 use std::f32::consts::FRAC_1_PI;
 
+use crate::energy::{ggx_albedo, multiple_scattering_fresnel};
 use crate::microfacet::{fresnel_dielectric, fresnel_schlick, reflect, refract, Ggx};
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 
@@ -95,6 +101,13 @@ pub struct Bsdf {
     f0: Vec3,
     /// Lobe selection probabilities in `LOBES` order.
     prob: [f32; 5],
+    /// The specular layer's directional albedo at `wo` (max channel, × specular weight).
+    layer_o: f32,
+    /// 1 / (1 − the layer's hemispherical-average albedo): the diffuse's normalisation.
+    layer_norm: f32,
+    /// The conductor's multiple-scattering term without its (1 − E(cos_i)) factor:
+    /// F_ms (1 − E(cos_o)) / (π (1 − E_avg)).
+    ms_o: Vec3,
     /// Whether each lobe is a delta.
     delta: [bool; 5],
 }
@@ -107,11 +120,25 @@ impl Bsdf {
         let f0 = (Vec3::splat(r * r) * p.specular_color).min(Vec3::ONE);
         let cos_o = wo.z.abs();
         let (m, t, op, s) = (p.metallic, p.transmission, p.opacity, p.specular);
-        let f_layer = s * fresnel_schlick(f0, cos_o).max_element();
+        // Tabulated albedos for the layering and the multiple-scattering term.
+        let table = ggx_albedo();
+        let f0_max = f0.max_element();
+        let layer_o = layer_albedo(&ggx, p.roughness, s, f0_max, cos_o);
+        // A mirror's average is Schlick's: F0 + (1 − F0)/21.
+        let layer_avg =
+            if ggx.is_smooth() { f0_max + (1.0 - f0_max) / 21.0 } else { table.average(p.roughness, f0_max) };
+        let layer_norm = 1.0 / (1.0 - s * layer_avg).max(1e-3);
+        let e_avg = table.average(p.roughness, 1.0);
+        let ms_o = if ggx.is_smooth() || e_avg >= 1.0 {
+            Vec3::ZERO
+        } else {
+            multiple_scattering_fresnel(p.base_color, e_avg)
+                * ((1.0 - table.albedo(p.roughness, cos_o, 1.0)).max(0.0) * FRAC_1_PI / (1.0 - e_avg))
+        };
         // Selection weights: estimated albedo of each lobe (a floor keeps every live lobe reachable).
         let w = [
-            op * (1.0 - m) * (1.0 - t) * luminance(p.base_color) * (1.0 - f_layer),
-            op * (1.0 - m) * (1.0 - t) * if s > 0.0 { f_layer.max(0.05) } else { 0.0 },
+            op * (1.0 - m) * (1.0 - t) * luminance(p.base_color) * (1.0 - layer_o),
+            op * (1.0 - m) * (1.0 - t) * if s > 0.0 { layer_o.max(0.05) } else { 0.0 },
             op * (1.0 - m) * t,
             op * m * luminance(fresnel_schlick(p.base_color, cos_o)).max(0.05),
             1.0 - op,
@@ -120,7 +147,7 @@ impl Bsdf {
         let prob = if total > 0.0 { w.map(|x| x / total) } else { [1.0, 0.0, 0.0, 0.0, 0.0] };
         let smooth = ggx.is_smooth();
         let glass_smooth = smooth || (p.ior - 1.0).abs() < 1e-3;
-        Bsdf { p, ggx, f0, prob, delta: [false, smooth, glass_smooth, smooth, true] }
+        Bsdf { p, ggx, f0, prob, layer_o, layer_norm, ms_o, delta: [false, smooth, glass_smooth, smooth, true] }
     }
 
     /// True if some lobe with non-zero probability is not a delta (light sampling is useful).
@@ -128,10 +155,10 @@ impl Bsdf {
         (0..5).any(|i| self.prob[i] > 0.0 && !self.delta[i])
     }
 
-    /// Dielectric specular-layer Fresnel (max channel), weighted by the specular factor.
+    /// The specular layer's directional albedo at `cos` (max channel, × the specular weight).
     #[inline]
-    fn layer_f(&self, cos: f32) -> f32 {
-        self.p.specular * fresnel_schlick(self.f0, cos).max_element()
+    fn layer_albedo(&self, cos: f32) -> f32 {
+        layer_albedo(&self.ggx, self.p.roughness, self.p.specular, self.f0.max_element(), cos)
     }
 
     /// Value (without the lobe's mixture weight) and sampling pdf of one non-delta lobe,
@@ -146,8 +173,9 @@ impl Bsdf {
                 }
                 let (wo, wi) = (two_sided(wo), two_sided(wi));
                 if lobe == Lobe::Diffuse {
-                    let f = self.p.base_color * FRAC_1_PI * (1.0 - self.layer_f(wo.z)) * (1.0 - self.layer_f(wi.z));
-                    return (f, cosine_hemisphere_pdf(wi.z));
+                    // Albedo-scaled layering, normalised so the diffuse's albedo is ρ(1 − E_L(cos_o)).
+                    let split = (1.0 - self.layer_o) * (1.0 - self.layer_albedo(wi.z)) * self.layer_norm;
+                    return (self.p.base_color * (FRAC_1_PI * split.max(0.0)), cosine_hemisphere_pdf(wi.z));
                 }
                 let wm = wo + wi;
                 if wm.length_squared() == 0.0 {
@@ -163,7 +191,12 @@ impl Bsdf {
                 let d = self.ggx.d(wm);
                 let (g2, g1) = self.ggx.smith(wo, wi);
                 // f = F·D·G2/(4 cos_o cos_i); pdf = D_wo(wm)/(4 wo·wm) = G1(wo)·D/(4 cos_o).
-                let f = fresnel * (d * g2 / (4.0 * wo.z * wi.z));
+                let mut f = fresnel * (d * g2 / (4.0 * wo.z * wi.z));
+                if lobe == Lobe::Conductor && self.ms_o != Vec3::ZERO {
+                    // Kulla–Conty: the energy single scattering lost, spread over wi.
+                    let e_i = ggx_albedo().albedo(self.p.roughness, wi.z, 1.0);
+                    f += self.ms_o * (1.0 - e_i).max(0.0);
+                }
                 (f, d * g1 / (4.0 * wo.z))
             }
             Lobe::Dielectric => {
@@ -338,6 +371,15 @@ impl Bsdf {
         };
         Some(BsdfSample { wi, weight: weight * scale, pdf: pl, delta: true })
     }
+}
+
+/// The specular layer's directional albedo at `cos`: specular weight × (the tabulated GGX
+/// albedo, or for a mirror Schlick's Fresnel itself), for F0 `f0`.
+#[inline]
+fn layer_albedo(ggx: &Ggx, roughness: f32, specular: f32, f0: f32, cos: f32) -> f32 {
+    let e =
+        if ggx.is_smooth() { fresnel_schlick(Vec3::splat(f0), cos).x } else { ggx_albedo().albedo(roughness, cos, f0) };
+    specular * e
 }
 
 /// Mirrors a direction into the upper hemisphere.
@@ -566,6 +608,12 @@ mod tests {
                         let label = format!("m={m} t={t} r={r} ior={ior} cos={cos}");
                         let (_, albedo) = check_energy(p, wo_at(cos), 20_000, &label);
                         assert!(albedo.max_element() <= 1.01, "{label}: albedo {albedo}");
+                        // White opaque surfaces, plastic or metal, keep all their energy at any
+                        // roughness: layering and the multiple-scattering term give back what
+                        // single scattering loses (tables to about 1%).
+                        if t == 0.0 && ior > 1.01 && cos >= 0.05 {
+                            assert!(albedo.min_element() >= 0.98, "{label}: albedo {albedo}, energy lost");
+                        }
                         // Clear glass and mirrors lose no energy at all.
                         if (m == 1.0 || t == 1.0) && r == 0.0 {
                             assert!(albedo.min_element() >= 1.0 / (ior * ior) - 1e-3, "{label}: albedo {albedo}");

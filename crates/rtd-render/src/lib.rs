@@ -9,6 +9,7 @@
 
 pub mod bsdf;
 pub mod bvh;
+pub mod energy;
 mod film;
 pub mod integrator;
 pub mod lights;

@@ -98,8 +98,9 @@ impl LightSet {
         for l in &scene.lights {
             let p = match *l {
                 Light::Point { intensity, .. } => 4.0 * PI * luminance(intensity),
-                Light::Spot { intensity, cos_inner, cos_outer, .. } => {
-                    2.0 * PI * luminance(intensity) * (1.0 - 0.5 * (cos_inner + cos_outer))
+                // The cone's solid angle with the edge counted at half strength.
+                Light::Spot { intensity, cos_outer, smooth, .. } => {
+                    2.0 * PI * luminance(intensity) * (1.0 - cos_outer - 0.5 * smooth)
                 }
                 Light::Directional { irradiance, .. } => PI * scene_radius * scene_radius * luminance(irradiance),
             };
@@ -218,14 +219,12 @@ fn sample_punctual(l: &Light, p: Vec3, sel: f32) -> LightSample {
             let dist2 = d.length_squared().max(f32::MIN_POSITIVE);
             LightSample { wi: d / dist2.sqrt(), li: intensity / dist2, pdf: sel, point: Some(position), delta: true }
         }
-        Light::Spot { position, direction, intensity, cos_inner, cos_outer } => {
+        Light::Spot { position, direction, intensity, .. } => {
             let d = position - p;
             let dist2 = d.length_squared().max(f32::MIN_POSITIVE);
             let wi = d / dist2.sqrt();
-            // glTF's smooth cone falloff: saturate((cosθ − cos_outer)/(cos_inner − cos_outer))².
-            let cd = direction.dot(-wi);
-            let a = ((cd - cos_outer) / (cos_inner - cos_outer).max(1e-4)).clamp(0.0, 1.0);
-            LightSample { wi, li: intensity * (a * a) / dist2, pdf: sel, point: Some(position), delta: true }
+            let a = l.cone_falloff(direction.dot(-wi));
+            LightSample { wi, li: intensity * a / dist2, pdf: sel, point: Some(position), delta: true }
         }
         Light::Directional { direction, irradiance } => {
             LightSample { wi: -direction, li: irradiance, pdf: sel, point: None, delta: true }

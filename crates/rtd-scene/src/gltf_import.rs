@@ -308,13 +308,9 @@ fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light
     match light.kind() {
         gltf::khr_lights_punctual::Kind::Directional => Light::Directional { direction, irradiance: color },
         gltf::khr_lights_punctual::Kind::Point => Light::Point { position, intensity: color },
-        gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => Light::Spot {
-            position,
-            direction,
-            intensity: color,
-            cos_inner: inner_cone_angle.cos(),
-            cos_outer: outer_cone_angle.cos().min(inner_cone_angle.cos() - 1e-6),
-        },
+        gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+            Light::spot(position, direction, color, inner_cone_angle, outer_cone_angle)
+        }
     }
 }
 
