@@ -153,6 +153,22 @@ def compare(a, b):
             "blocks": int(keep.sum())}
 
 
+def store_reference(out, variant, base, w, h, spp):
+    """Keeps the .glb and Cycles' numbers for the test that needs no Blender."""
+    import shutil
+    os.makedirs(out, exist_ok=True)
+    shutil.copy(base + ".glb", os.path.join(out, variant + ".glb"))
+    img = read_exr_rgb(base + "-cycles.exr")
+    hh, ww = (h // 8) * 8, (w // 8) * 8
+    lum = img[:hh, :ww].mean(axis=2)
+    blocks = lum.reshape(hh // 8, 8, ww // 8, 8).mean(axis=(1, 3))
+    ref = {"variant": variant, "size": [w, h], "cycles_spp": spp, "blender": bpy.app.version_string,
+           "mean_rgb": [float(x) for x in img.reshape(-1, 3).mean(axis=0)],
+           "blocks": [[float(x) for x in row] for row in blocks]}
+    with open(os.path.join(out, variant + "-cycles.json"), "w") as f:
+        json.dump(ref, f, indent=1)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out")
@@ -160,6 +176,9 @@ def main():
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--size", default="320x180")
     ap.add_argument("--lights", default="point,spot,sun,emissive,all")
+    ap.add_argument("--store-reference", metavar="DIR",
+                    help="also keep each variant's .glb and Cycles' image mean and 8x8 block means "
+                         "(mean of R,G,B) in DIR, for tests/blender_roundtrip.rs")
     args = ap.parse_args()
     w, h = map(int, args.size.split("x"))
     os.makedirs(args.out, exist_ok=True)
@@ -179,6 +198,8 @@ def main():
         row = compare(read_exr_rgb(base + "-rtd.exr"), read_exr_rgb(base + "-cycles.exr"))
         row.update({"cycles_s": cycles_s, "rtd_s": rtd_s})
         table[variant] = row
+        if args.store_reference:
+            store_reference(args.store_reference, variant, base, w, h, args.spp)
         print(f"{variant:9s} mean rtd/cycles {row['mean_ratio']:.3f}  8x8 blocks {100 * row['block_rel_diff']:.1f}% "
               f"({row['blocks']} blocks)  cycles {cycles_s:.0f} s, rtd {rtd_s:.0f} s", flush=True)
     with open(os.path.join(args.out, "roundtrip.json"), "w") as f:
