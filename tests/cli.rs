@@ -522,3 +522,58 @@ fn environment_maps_from_hdr_and_pfm_and_strength_scales() {
     assert_fails(&bad(&["--env", tiff.to_str().unwrap()]), "an environment map must be .exr, .hdr, .pfm or .phm");
     assert!(!o.exists());
 }
+
+/// `--scene NAME|INDEX` picks one of a glTF file's scenes; without it a file of several
+/// scenes renders its default one and says so; an unknown scene lists the scenes.
+#[test]
+fn scene_choice_picks_one_of_several_scenes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(common::repo_path("scenes/cornell-box.gltf")).unwrap()).unwrap();
+    // Scene 1, "no-blocks": the room, its light and camera without the two blocks.
+    doc["scenes"][0]["name"] = "full".into();
+    doc["scenes"].as_array_mut().unwrap().push(serde_json::json!({"name": "no-blocks", "nodes": [0, 1, 2, 3, 6]}));
+    let buffers = doc["buffers"].as_array_mut().unwrap();
+    for b in buffers {
+        if let Some(uri) = b["uri"].as_str().filter(|u| !u.starts_with("data:")) {
+            b["uri"] = common::repo_path("scenes").join(uri).display().to_string().into();
+        }
+    }
+    let path = dir.path().join("two.gltf");
+    std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
+    let p = path.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let report = dir.path().join("r.json");
+        let out = dir.path().join("o.exr");
+        let args = ["render", p, "-o", out.to_str().unwrap(), "--spp", "1", "--width", "8", "--height", "8"];
+        let o = rtd(&[&args[..], &["-q", "--report", report.to_str().unwrap()], extra].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        (r["triangles"].as_u64().unwrap(), String::from_utf8_lossy(&o.stderr).to_string())
+    };
+    let (all, warning) = run(&[]);
+    assert!(warning.contains("the file has 2 scenes; rendering scene 0 \"full\" (choose with --scene)"), "{warning}");
+    let (by_name, quiet) = run(&["--scene", "no-blocks"]);
+    assert!(by_name < all && quiet.trim().is_empty(), "{by_name} of {all}: {quiet}");
+    assert_eq!(run(&["--scene", "1"]).0, by_name);
+    assert_eq!(run(&["--scene", "full"]).0, all);
+    let o = dir.path().join("bad.exr");
+    let bad = rtd(&["render", p, "-o", o.to_str().unwrap(), "--scene", "attic", "-q"]);
+    assert_fails(&bad, "two.gltf: no scene \"attic\" (scenes: 0 \"full\", 1 \"no-blocks\")");
+    let obj = dir.path().join("t.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let args = [
+        "render",
+        obj.to_str().unwrap(),
+        "-o",
+        o.to_str().unwrap(),
+        "--scene",
+        "0",
+        "--look-from",
+        "0,0,3",
+        "--look-at",
+        "0,0,0",
+    ];
+    assert_fails(&rtd(&args), "t.obj: an OBJ file holds one scene");
+    assert!(!o.exists());
+}

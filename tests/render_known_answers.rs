@@ -195,3 +195,52 @@ fn large_ground_under_the_sky_reflects_its_albedo() {
     let m = mean(&film.beauty().pixels);
     assert!((m - rho as f64).abs() < 0.01 * rho as f64, "measured {m}, expected {rho}");
 }
+
+/// An unlit surface (KHR_materials_unlit) shows its base colour exactly, in the dark and in a
+/// furnace alike, and lights nothing: a diffuse floor facing only an unlit wall stays black.
+#[test]
+fn unlit_surfaces_show_their_colour_and_light_nothing() {
+    let colour = Vec3::new(0.3, 0.5, 0.7);
+    let unlit = Material { unlit: true, ..material(colour, 1.0, 0.0, 0.0) };
+    for env in [0.0, 1.0] {
+        let mut scene = furnace(env);
+        scene.materials.push(unlit.clone());
+        quad(
+            &mut scene,
+            Vec3::new(-5.0, -5.0, 0.0),
+            Vec3::new(5.0, -5.0, 0.0),
+            Vec3::new(5.0, 5.0, 0.0),
+            Vec3::new(-5.0, 5.0, 0.0),
+            0,
+        );
+        let cam = Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0);
+        let img = render(scene, cam, RenderSettings::new(8, 8).seed(3), 4).beauty();
+        for p in &img.pixels {
+            assert!((*p - colour).abs().max_element() < 1e-5, "env {env}: {p} is not {colour}");
+        }
+    }
+    // A wall of unlit white in front of a diffuse floor, nothing else: the floor is black.
+    let mut scene = furnace(0.0);
+    scene.materials.push(Material { unlit: true, ..material(Vec3::ONE, 1.0, 0.0, 0.0) });
+    scene.materials.push(material(Vec3::splat(0.8), 1.0, 0.0, 0.0));
+    quad(
+        &mut scene,
+        Vec3::new(-5.0, 0.0, -1.0),
+        Vec3::new(5.0, 0.0, -1.0),
+        Vec3::new(5.0, 5.0, -1.0),
+        Vec3::new(-5.0, 5.0, -1.0),
+        0,
+    );
+    quad(
+        &mut scene,
+        Vec3::new(-5.0, 0.0, -1.0),
+        Vec3::new(-5.0, 0.0, 5.0),
+        Vec3::new(5.0, 0.0, 5.0),
+        Vec3::new(5.0, 0.0, -1.0),
+        1,
+    );
+    // Looking down at the floor in front of the wall (the wall itself out of view).
+    let cam = Camera::look_at(Vec3::new(0.0, 3.0, 2.0), Vec3::new(0.0, 0.0, 2.01), 30.0);
+    let img = render(scene, cam, RenderSettings::new(8, 8).seed(3), 16).beauty();
+    assert!(img.pixels.iter().all(|p| *p == Vec3::ZERO), "the floor must stay black: {:?}", img.pixels);
+}

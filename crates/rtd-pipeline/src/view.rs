@@ -55,8 +55,19 @@ impl SceneView {
         camera: &CameraChoice,
         environment: Option<&EnvironmentChoice>,
     ) -> Result<Self, PipelineError> {
+        Self::load_scene(path, None, camera, environment)
+    }
+
+    /// [`SceneView::load`] of the glTF file's scene named or numbered `scene` (None: its
+    /// default scene).
+    pub fn load_scene(
+        path: &Path,
+        scene: Option<&str>,
+        camera: &CameraChoice,
+        environment: Option<&EnvironmentChoice>,
+    ) -> Result<Self, PipelineError> {
         let t = Instant::now();
-        let mut scene = rtd_scene::load_scene(path)?;
+        let mut scene = rtd_scene::load_scene_named(path, scene)?;
         if let Some(env) = environment {
             scene.environment = Environment::load(env)?;
         }

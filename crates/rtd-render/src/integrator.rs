@@ -105,6 +105,14 @@ impl Integrator<'_> {
                 };
                 radiance += beta * s.params.emission * w;
             }
+            // KHR_materials_unlit: the base colour as it is, seen directly or through delta
+            // bounces; it scatters nothing, so it neither receives nor casts light.
+            if material.unlit {
+                if specular {
+                    radiance += beta * s.params.base_color;
+                }
+                break;
+            }
             if depth >= self.max_depth {
                 break;
             }

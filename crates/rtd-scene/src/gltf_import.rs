@@ -18,6 +18,7 @@ pub const SUPPORTED_GLTF_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_specular",
     "KHR_texture_transform",
+    "KHR_materials_unlit",
 ];
 
 /// Loads a `.gltf` (external or embedded buffers) or `.glb` file into a flat [`Scene`].
@@ -28,6 +29,13 @@ pub const SUPPORTED_GLTF_EXTENSIONS: &[&str] = &[
 /// indices name missing vertices ([`SceneError::Accessor`], naming the mesh and accessor).
 /// Points and lines primitives are skipped with a warning.
 pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
+    load_gltf_scene(path, None)
+}
+
+/// [`load_gltf`] of the file's scene named or numbered `choice` (its `name`, or its index), or
+/// its default scene (else the first) when `choice` is None. A file with several scenes loaded
+/// without a choice says so in a warning; an unknown choice is an error listing the scenes.
+pub fn load_gltf_scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
     let GltfFile { document, buffers, images } = read_gltf(path)?;
     let mut scene = Scene::default();
     for ext in document.extensions_used().filter(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
@@ -41,7 +49,7 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     let default_material = scene.materials.len() as u32;
     scene.materials.push(Material::default());
 
-    let gscene = document.default_scene().or_else(|| document.scenes().next());
+    let gscene = pick_scene(path, &document, choice, &mut scene)?;
     let skipped_primitives = match gscene {
         Some(gscene) => {
             let mut nodes = NodeVisitor { path, buffers: &buffers, default_material, skipped_primitives: 0 };
@@ -92,6 +100,33 @@ fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<GltfFile, SceneError> {
     let buffers = gltf::import_buffers(&document, base, blob).map_err(gltf_err("cannot load buffers"))?;
     let images = gltf::import_images(&document, base, &buffers).map_err(gltf_err("cannot load images"))?;
     Ok(GltfFile { document, buffers, images })
+}
+
+/// The scene `choice` names (by name, then by index), else the default one, else the first.
+fn pick_scene<'a>(
+    path: &Path,
+    document: &'a gltf::Document,
+    choice: Option<&str>,
+    scene: &mut Scene,
+) -> Result<Option<gltf::Scene<'a>>, SceneError> {
+    let label = |s: &gltf::Scene| format!("{} {:?}", s.index(), s.name().unwrap_or(""));
+    let Some(wanted) = choice else {
+        let picked = document.default_scene().or_else(|| document.scenes().next());
+        if let (Some(p), n @ 2..) = (&picked, document.scenes().len()) {
+            scene.warnings.push(format!("the file has {n} scenes; rendering scene {} (choose with --scene)", label(p)));
+        }
+        return Ok(picked);
+    };
+    let by_name = document.scenes().find(|s| s.name() == Some(wanted));
+    let by_index = || wanted.parse::<usize>().ok().and_then(|i| document.scenes().nth(i));
+    match by_name.or_else(by_index) {
+        Some(s) => Ok(Some(s)),
+        None => {
+            let all: Vec<String> = document.scenes().map(|s| label(&s)).collect();
+            let have = if all.is_empty() { "none".to_string() } else { all.join(", ") };
+            Err(SceneError::new(path, format!("no scene {wanted:?} (scenes: {have})")))
+        }
+    }
 }
 
 /// Walks a glTF scene's node tree, adding meshes, cameras and lights in world space.
@@ -297,6 +332,7 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
         },
         double_sided: m.double_sided(),
+        unlit: m.unlit(),
     }
 }
 

@@ -26,7 +26,7 @@ pub use camera::{Camera, Projection};
 pub use camera_choice::CameraError;
 pub use environment::{EnvMap, Environment, EnvironmentChoice};
 pub use error::{AccessorProblem, SceneError};
-pub use gltf_import::{load_gltf, SUPPORTED_GLTF_EXTENSIONS};
+pub use gltf_import::{load_gltf, load_gltf_scene, SUPPORTED_GLTF_EXTENSIONS};
 pub use light::{Light, LUMENS_PER_WATT};
 pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TextureRef, UvTransform};
 pub use obj_import::load_obj;
@@ -39,9 +39,18 @@ use std::path::Path;
 /// A missing file is a [`SceneError::Io`] whose message is `PATH: no such file`; an unknown
 /// extension is a [`SceneError::UnknownFormat`].
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    load_scene_named(path, None)
+}
+
+/// [`load_scene`] of one of a glTF file's scenes, by name or index ([`load_gltf_scene`]); an
+/// OBJ file holds one scene and takes no choice.
+pub fn load_scene_named(path: &Path, scene: Option<&str>) -> Result<Scene, SceneError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
-        Some("gltf") | Some("glb") => load_gltf(path),
+        Some("gltf") | Some("glb") => load_gltf_scene(path, scene),
+        Some("obj") if scene.is_some() => {
+            Err(SceneError::new(path, "an OBJ file holds one scene; --scene is for glTF"))
+        }
         Some("obj") => load_obj(path),
         _ => Err(SceneError::UnknownFormat { path: path.to_path_buf() }),
     }

@@ -134,6 +134,10 @@ pub struct Material {
     pub alpha_mode: AlphaMode,
     /// Whether back faces are rendered as front faces (and emit).
     pub double_sided: bool,
+    /// `KHR_materials_unlit`: the surface shows its base colour as it is, to camera rays and
+    /// through mirrors and clear glass, and neither receives nor casts light (it is not an
+    /// emitter; diffuse and glossy bounces see it black).
+    pub unlit: bool,
 }
 
 impl Default for Material {
@@ -158,6 +162,7 @@ impl Default for Material {
             specular_color: Vec3::ONE,
             alpha_mode: AlphaMode::Opaque,
             double_sided: false,
+            unlit: false,
         }
     }
 }

@@ -33,7 +33,7 @@ impl ViewArgs {
     /// Loads the scene with the chosen camera and `env`, printing its warnings, and returns it
     /// with the image size `--width`/`--height` and the camera's aspect ratio give.
     pub fn load(&self, env: Option<&EnvironmentChoice>) -> anyhow::Result<(SceneView, (u32, u32))> {
-        let loaded = SceneView::load(&self.scene, &self.camera_choice(), env)?;
+        let loaded = SceneView::load_scene(&self.scene, self.scene_choice.as_deref(), &self.camera_choice(), env)?;
         let (w, h, size_warning) = loaded.resolution(self.width, self.height);
         warn_all(&self.scene, loaded.warnings.iter().map(String::as_str).chain(size_warning.as_deref()));
         Ok((loaded, (w, h)))

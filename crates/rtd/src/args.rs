@@ -399,6 +399,9 @@ pub struct ViewArgs {
     /// when the file gives none).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=rtd_image::MAX_DIMENSION as i64))]
     pub height: Option<u32>,
+    /// glTF scene by name or index (default: the file's default scene).
+    #[arg(long = "scene", value_name = "NAME|INDEX")]
+    pub scene_choice: Option<String>,
     /// Camera by name or index (default: the first perspective camera in the file).
     #[arg(long)]
     pub camera: Option<String>,
