@@ -542,3 +542,54 @@ fn unlit_materials_are_read() {
     assert!(scene.materials[0].unlit && !scene.materials[1].unlit);
     assert!(scene.warnings.iter().all(|w| !w.contains("unlit")), "{:?}", scene.warnings);
 }
+
+/// COLOR_0 (float RGB, or normalised u8 RGBA whose alpha is not read) multiplies the base
+/// colour, in the path tracer and in the guide pass's albedo alike: a white unlit quad with
+/// uniform vertex colour c renders as c exactly, and its guide albedo is c.
+#[test]
+fn vertex_colours_multiply_the_base_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let want = Vec3::new(0.2, 0.4, 0.6);
+    let unlit =
+        json!([{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}, "extensions": {"KHR_materials_unlit": {}}}]);
+    let node = json!([{"mesh": 0}, {"camera": 0, "translation": [0.5, 0.5, 2.0]}]);
+    let cameras = json!([{"type": "perspective", "perspective": {"yfov": 0.2, "znear": 0.01}}]);
+    let float: Vec<u8> = f32_bytes(&[0.2, 0.4, 0.6].repeat(4));
+    // Normalised u8 RGBA: 51/255 = 0.2, 102/255 = 0.4, 153/255 = 0.6, alpha ignored.
+    let bytes: Vec<u8> = [51u8, 102, 153, 7].repeat(4);
+    for (name, data, ty, component) in [("float", float, "VEC3", 5126), ("u8", bytes, "VEC4", 5121)] {
+        let (mut doc, mut buf) = quad_gltf(node.clone(), unlit.clone(), &[("cameras", cameras.clone())]);
+        doc["scenes"][0]["nodes"] = json!([0, 1]);
+        let offset = buf.len();
+        buf.extend(&data);
+        doc["buffers"][0]["byteLength"] = json!(buf.len());
+        doc["bufferViews"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len()}));
+        let mut accessor = json!({"bufferView": 3, "componentType": component, "count": 4, "type": ty});
+        if component != 5126 {
+            accessor["normalized"] = json!(true);
+        }
+        doc["accessors"].as_array_mut().unwrap().push(accessor);
+        doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(3);
+        doc["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+        let path = write_gltf(dir.path(), &format!("{name}.gltf"), doc, &buf);
+        let scene = load_scene(&path).unwrap();
+        assert_eq!(scene.vertex_colors.len(), scene.triangles.len(), "{name}");
+        let c = scene.vertex_color(0, Vec3::splat(1.0 / 3.0));
+        assert!((c - want).abs().max_element() < 1e-6, "{name}: {c}");
+        let camera = scene.cameras[0].clone();
+        let bvh = SceneBvh::build(&scene);
+        let guide =
+            rtd::guide::GuidePass::render(&scene, &bvh, &camera, &rtd::guide::GuideSettings::new(6, 6)).unwrap();
+        let prepared = rtd::render::RenderScene::new(scene);
+        let tracer = rtd::render::PathTracer::new(&prepared, camera, rtd::render::RenderSettings::new(6, 6)).unwrap();
+        let mut film = tracer.film();
+        tracer.render(&mut film, 2).unwrap();
+        for (p, a) in film.beauty().pixels.iter().zip(&guide.albedo.pixels) {
+            assert!((*p - want).abs().max_element() < 1e-5, "{name}: pixel {p}");
+            assert!((*a - want).abs().max_element() < 1e-5, "{name}: guide albedo {a}");
+        }
+    }
+}

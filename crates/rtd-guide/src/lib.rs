@@ -195,7 +195,8 @@ fn shade_one_triangle(
     }
     let t = &scene.triangles[first.triangle as usize];
     let m = &scene.materials[t.material as usize];
-    if m.normal_texture.is_some() || t.n[0] != t.n[1] || t.n[1] != t.n[2] {
+    // Vertex colours vary across the triangle: the general path takes them per sample.
+    if m.normal_texture.is_some() || t.n[0] != t.n[1] || t.n[1] != t.n[2] || !scene.vertex_colors.is_empty() {
         return None;
     }
     let ng = front[first.triangle as usize];
@@ -305,7 +306,11 @@ impl GuidePass {
                     MaterialFootprint::POINT
                 };
                 let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
-                let albedo = m.albedo_filtered(&scene.textures, uv, &f);
+                let mut albedo = m.albedo_filtered(&scene.textures, uv, &f);
+                // COLOR_0 tints the base colour; emitters stay white in the albedo.
+                if !m.is_emissive() {
+                    albedo *= scene.vertex_color(hit.triangle, b);
+                }
                 let tangent = m.tangent_normal_filtered(&scene.textures, uv, &f);
                 out.albedo += albedo * inv;
                 out.normal += shading_normal(t, b, ng, tangent) * inv;

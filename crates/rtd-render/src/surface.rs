@@ -37,7 +37,8 @@ impl Surface {
         let ng = t.front_normal();
         let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
         let material = &scene.materials[t.material as usize];
-        let params = material.evaluate(&scene.textures, uv);
+        let mut params = material.evaluate(&scene.textures, uv);
+        params.base_color *= scene.vertex_color(hit.triangle, b);
         let ns = shading_normal(t, b, ng, params.tangent_normal);
         Surface { p, p_error, ng, ns, uv, triangle: hit.triangle, params }
     }

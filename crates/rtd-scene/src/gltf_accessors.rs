@@ -75,7 +75,13 @@ pub(crate) fn check_primitive(prim: &gltf::Primitive, site: MeshSite) -> Result<
     }
     let vertex_count = prim.get(&Semantic::Positions).map(|a| a.count());
     for (semantic, accessor) in prim.attributes() {
-        let Some(readable) = attribute_types(&semantic) else {
+        // COLOR_0 may be RGB or RGBA; the alpha is not read.
+        let readable = match (&semantic, accessor.dimensions()) {
+            (Semantic::Colors(0), Dimensions::Vec4) => Some((Dimensions::Vec4, TEXCOORD_TYPES)),
+            (Semantic::Colors(0), _) => Some((Dimensions::Vec3, TEXCOORD_TYPES)),
+            _ => attribute_types(&semantic),
+        };
+        let Some(readable) = readable else {
             continue;
         };
         check_type(&accessor, &semantic.to_string(), readable, site)?;

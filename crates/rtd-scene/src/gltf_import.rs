@@ -378,6 +378,8 @@ fn add_primitive(
         .read_tangents()
         .map(|t| t.map(|t| (m3 * Vec3::new(t[0], t[1], t[2])).normalize_or_zero().extend(t[3])).collect());
     let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
+    // COLOR_0 multiplies the base colour (its alpha is not read).
+    let colors: Option<Vec<Vec3>> = reader.read_colors(0).map(|c| c.into_rgb_f32().map(Vec3::from).collect());
     let indices: Vec<u32> = match reader.read_indices() {
         Some(i) => i.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
@@ -390,13 +392,15 @@ fn add_primitive(
         if mirrored {
             t.swap(1, 2);
         }
-        scene.push_triangle(Triangle {
+        let triangle = Triangle {
             p: t.map(|i| positions[i as usize]),
             n: t.map(|i| attribute(&normals, i, Vec3::ZERO)),
             uv: t.map(|i| attribute(&uvs, i, Vec2::ZERO)),
             tangent: t.map(|i| attribute(&tangents, i, Vec4::ZERO)),
             material,
-        });
+        };
+        let vertex_colors = colors.as_ref().map(|_| t.map(|i| attribute(&colors, i, Vec3::ONE)));
+        scene.push_colored_triangle(triangle, vertex_colors);
     }
     Ok(true)
 }

@@ -63,6 +63,10 @@ pub struct Scene {
     pub skipped_degenerate: usize,
     /// Non-fatal problems found while loading, one line each.
     pub warnings: Vec<String>,
+    /// Linear vertex colours (glTF `COLOR_0`, RGB) per triangle, which multiply the base
+    /// colour; empty when no mesh has them (then every triangle is white). See
+    /// [`Scene::vertex_color`].
+    pub vertex_colors: Vec<[Vec3; 3]>,
 }
 
 impl Scene {
@@ -95,6 +99,31 @@ impl Scene {
         }
         self.triangles.push(t);
         true
+    }
+
+    /// [`Scene::push_triangle`] with the triangle's vertex colours (None: white). Colours are
+    /// kept only once some triangle has them; non-finite or negative values become 0.
+    pub fn push_colored_triangle(&mut self, t: Triangle, colors: Option<[Vec3; 3]>) -> bool {
+        if !self.push_triangle(t) {
+            return false;
+        }
+        if colors.is_some() && self.vertex_colors.is_empty() {
+            self.vertex_colors = vec![[Vec3::ONE; 3]; self.triangles.len() - 1];
+        }
+        if !self.vertex_colors.is_empty() || colors.is_some() {
+            let clean = |c: Vec3| if c.is_finite() { c.max(Vec3::ZERO) } else { Vec3::ZERO };
+            self.vertex_colors.push(colors.map_or([Vec3::ONE; 3], |c| c.map(clean)));
+        }
+        true
+    }
+
+    /// The vertex colour of triangle `tri` at barycentrics `b` (white without colours).
+    #[inline]
+    pub fn vertex_color(&self, tri: u32, b: Vec3) -> Vec3 {
+        match self.vertex_colors.get(tri as usize) {
+            Some(c) => c[0] * b.x + c[1] * b.y + c[2] * b.z,
+            None => Vec3::ONE,
+        }
     }
 
     /// Records the skipped-triangle counts as warnings; importers call this once at the end.
