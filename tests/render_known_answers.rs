@@ -150,7 +150,15 @@ fn environment_map_matches_constant_environment() {
 #[test]
 fn a_turned_environment_equals_the_map_moved_by_whole_texels() {
     let (w, h) = (32usize, 16usize);
-    let sky = |x: usize, y: usize| if x < w / 4 && y < h / 2 { Vec3::new(6.0, 5.0, 4.0) } else { Vec3::splat(0.05) };
+    // The bright quadrant in front of the camera and to its left (u in [1/4, 1/2)), so a
+    // quarter turn moves it behind.
+    let sky = |x: usize, y: usize| {
+        if (w / 4..w / 2).contains(&x) && y < h / 2 {
+            Vec3::new(6.0, 5.0, 4.0)
+        } else {
+            Vec3::splat(0.05)
+        }
+    };
     let image = |shift: usize| {
         let px = (0..w * h).map(|i| sky((i % w + shift) % w, i / w)).collect();
         rtd::image::HdrImage::from_pixels(w as u32, h as u32, px)

@@ -23,6 +23,7 @@ mod hdr;
 mod layer;
 mod layer_lookup;
 mod ldr;
+mod limits;
 pub mod metrics;
 mod parser_guard;
 mod pfm;
@@ -37,17 +38,9 @@ pub use format::ImageFormat;
 pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};
 pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
+pub use limits::{check_image_size, MAX_DIMENSION, MAX_PIXELS};
 pub use parser_guard::{contain_panic, contained_panics};
 pub use pfm::{decode_pfm, encode_pfm, read_pfm, read_pfm_header, write_pfm, PfmHeader};
 pub use progress::{Progress, Quiet};
 pub use rgbe::read_rgbe;
-pub use sniff::{check_image_size, read_image_header, ImageHeader};
-
-/// Largest width or height rtd accepts for any image it reads, renders, denoises or writes.
-/// Every size check in rtd uses this one constant.
-pub const MAX_DIMENSION: u32 = 16384;
-
-/// Largest image area rtd renders or decodes (64 Mpx, 8192²). A render's film keeps 52 bytes
-/// per pixel (f64 beauty, f32 AOVs), so this bounds it near 3.5 GB on the 24 GiB machines rtd
-/// targets; a decoded EXR is checked against it from its headers, before any pixel is read.
-pub const MAX_PIXELS: usize = 1 << 26;
+pub use sniff::{read_image_header, ImageHeader};

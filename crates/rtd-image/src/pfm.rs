@@ -8,7 +8,8 @@ use std::path::Path;
 use exr::prelude::f16;
 use glam::Vec3;
 
-use crate::{check_image_size, write_bytes_atomic, HdrImage, ImageError};
+use crate::limits::check_image_size;
+use crate::{write_bytes_atomic, HdrImage, ImageError};
 
 /// What a PFM/PHM header says.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

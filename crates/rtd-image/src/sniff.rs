@@ -5,6 +5,7 @@
 use std::io::Cursor;
 use std::path::Path;
 
+use crate::limits::check_image_size;
 use crate::{ImageError, ImageFormat, MAX_DIMENSION, MAX_PIXELS};
 
 /// An image's format (from its magic bytes, not its name) and size (from its header).
@@ -16,21 +17,6 @@ pub struct ImageHeader {
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-}
-
-/// Refuses a size outside 1..=[`MAX_DIMENSION`] a side or above [`MAX_PIXELS`] in all; `name`
-/// names the file in the error.
-pub fn check_image_size(name: &Path, width: usize, height: usize) -> Result<(), ImageError> {
-    if width == 0 || height == 0 || width > MAX_DIMENSION as usize || height > MAX_DIMENSION as usize {
-        return Err(ImageError::invalid(
-            name,
-            format!("image size {width}x{height} is outside 1..={MAX_DIMENSION} a side"),
-        ));
-    }
-    if width.saturating_mul(height) > MAX_PIXELS {
-        return Err(ImageError::invalid(name, format!("image size {width}x{height} exceeds {MAX_PIXELS} pixels")));
-    }
-    Ok(())
 }
 
 /// Refuses an EXR whose parts are empty or over [`MAX_DIMENSION`] a side, or over
