@@ -109,11 +109,11 @@ impl DenoiseSources {
     pub fn denoise(&self, denoiser: &Denoiser) -> Result<Denoised, PipelineError> {
         self.check()?;
         let mut files = InputFiles::default();
-        let color = files.read(&self.color, Layer::Beauty, self.named(Layer::Beauty))?;
+        let color = files.read(&self.color, Layer::Beauty, self.named(Layer::Beauty), true)?;
         let mut inputs = vec!["color".to_string()];
         let mut other = |path: &Option<PathBuf>, layer: Layer, name: &str| -> Result<Option<HdrImage>, PipelineError> {
             let Some(p) = path else { return Ok(None) };
-            let img = files.read(p, layer, self.named(layer))?.image;
+            let img = files.read(p, layer, self.named(layer), false)?.image;
             same_size(p, &img, &color.image)?;
             inputs.push(name.to_string());
             Ok(Some(img))
@@ -171,8 +171,15 @@ impl InputFiles {
     /// Reads the image of `layer` from `path`: from an EXR that layer under rtd's or another
     /// renderer's name, or under `prefix` when the caller named one ([`Layers::find_channels`]),
     /// else its bare `R,G,B`; PFM/PHM as linear RGB; PNG/JPEG sRGB-decoded, with 8- or 16-bit
-    /// normals decoded from n·0.5 + 0.5.
-    fn read(&mut self, path: &Path, layer: Layer, prefix: Option<&str>) -> Result<Source, PipelineError> {
+    /// normals decoded from n·0.5 + 0.5. `keep_file`: return the EXR's channels too (the colour's,
+    /// which the output is made from), else only the image.
+    fn read(
+        &mut self,
+        path: &Path,
+        layer: Layer,
+        prefix: Option<&str>,
+        keep_file: bool,
+    ) -> Result<Source, PipelineError> {
         let vector = layer.channels() == Channels::Xyz;
         let format = ImageFormat::from_path(path)?;
         let source = match format {
@@ -193,7 +200,8 @@ impl InputFiles {
                     message: missing_layer(layer, prefix, layers),
                 })?;
                 let half = names.iter().all(|n| layers.half_channels.contains(n));
-                Source { image: layers.image_in(&names), exr: Some((layers.clone(), names)), half }
+                let image = layers.image_in(&names);
+                Source { image, exr: keep_file.then(|| (layers.clone(), names)), half }
             }
             ImageFormat::Pfm | ImageFormat::Phm => {
                 Source { image: rtd_image::read_pfm(path)?, exr: None, half: format == ImageFormat::Phm }
