@@ -528,17 +528,10 @@ fn environment_maps_from_hdr_and_pfm_and_strength_scales() {
 #[test]
 fn scene_choice_picks_one_of_several_scenes() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(common::repo_path("scenes/cornell-box.gltf")).unwrap()).unwrap();
+    let mut doc = common::cornell_json();
     // Scene 1, "no-blocks": the room, its light and camera without the two blocks.
     doc["scenes"][0]["name"] = "full".into();
     doc["scenes"].as_array_mut().unwrap().push(serde_json::json!({"name": "no-blocks", "nodes": [0, 1, 2, 3, 6]}));
-    let buffers = doc["buffers"].as_array_mut().unwrap();
-    for b in buffers {
-        if let Some(uri) = b["uri"].as_str().filter(|u| !u.starts_with("data:")) {
-            b["uri"] = common::repo_path("scenes").join(uri).display().to_string().into();
-        }
-    }
     let path = dir.path().join("two.gltf");
     std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
     let p = path.to_str().unwrap();

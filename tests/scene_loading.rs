@@ -1,5 +1,7 @@
 //! The glTF and OBJ importers on hand-made files that exercise each supported feature.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
@@ -524,18 +526,10 @@ fn bundled_scenes_load_without_warnings() {
 #[test]
 fn unlit_materials_are_read() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf")).unwrap(),
-    )
-    .unwrap();
+    let mut doc = common::cornell_json();
     doc["materials"][0]["extensions"] = serde_json::json!({"KHR_materials_unlit": {}});
     doc["extensionsUsed"] = serde_json::json!(["KHR_materials_unlit"]);
     doc["extensionsRequired"] = serde_json::json!(["KHR_materials_unlit"]);
-    for b in doc["buffers"].as_array_mut().unwrap() {
-        if let Some(uri) = b["uri"].as_str().filter(|u| !u.starts_with("data:")) {
-            b["uri"] = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(uri).display().to_string().into();
-        }
-    }
     let path = dir.path().join("unlit.gltf");
     std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
     let scene = rtd::scene::load_scene(&path).unwrap();

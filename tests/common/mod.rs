@@ -139,3 +139,16 @@ pub fn dataset_files(dir: &std::path::Path) -> std::collections::BTreeMap<String
     out.insert("manifest.json".into(), serde_json::to_vec_pretty(&manifest).unwrap());
     out
 }
+
+/// The bundled Cornell box's glTF JSON with its buffer URIs made absolute, so an edited copy
+/// can be written anywhere.
+pub fn cornell_json() -> serde_json::Value {
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(repo_path("scenes/cornell-box.gltf")).unwrap()).unwrap();
+    for b in doc["buffers"].as_array_mut().unwrap() {
+        if let Some(uri) = b["uri"].as_str().filter(|u| !u.starts_with("data:")) {
+            b["uri"] = repo_path("scenes").join(uri).display().to_string().into();
+        }
+    }
+    doc
+}

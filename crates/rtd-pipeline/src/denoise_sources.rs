@@ -188,13 +188,11 @@ impl InputFiles {
                     self.exr.insert(path.to_path_buf(), rtd_image::read_exr(path)?);
                 }
                 let layers = &self.exr[path];
-                let bare = || Some(Layer::Beauty.channel_names()).and_then(|n| <[String; 3]>::try_from(n).ok());
-                let names = layers.find_channels(layer, prefix).or_else(|| {
-                    (prefix.is_none() && layer != Layer::Beauty)
-                        .then(bare)
-                        .flatten()
-                        .filter(|n| n.iter().all(|c| layers.get(c).is_some()))
-                });
+                // Without a named prefix, a file of bare R,G,B holds any layer (another renderer's
+                // albedo or normal saved on its own).
+                let bare = ["R", "G", "B"].map(String::from);
+                let fallback = (prefix.is_none() && bare.iter().all(|c| layers.get(c).is_some())).then_some(bare);
+                let names = layers.find_channels(layer, prefix).or(fallback);
                 let names = names.ok_or_else(|| PipelineError::Input {
                     path: path.to_path_buf(),
                     message: missing_layer(layer, prefix, layers),

@@ -128,8 +128,9 @@ impl Bsdf {
         let layer_avg =
             if ggx.is_smooth() { f0_max + (1.0 - f0_max) / 21.0 } else { table.average(p.roughness, f0_max) };
         let layer_norm = 1.0 / (1.0 - s * layer_avg).max(1e-3);
-        let e_avg = table.average(p.roughness, 1.0);
-        let ms_o = if ggx.is_smooth() || e_avg >= 1.0 {
+        // Only a rough metal lobe needs the multiple-scattering term.
+        let e_avg = if m > 0.0 && !ggx.is_smooth() { table.average(p.roughness, 1.0) } else { 1.0 };
+        let ms_o = if e_avg >= 1.0 {
             Vec3::ZERO
         } else {
             multiple_scattering_fresnel(p.base_color, e_avg)
