@@ -144,7 +144,7 @@ fn a_1x1_texture_samples_as_its_one_colour() {
     let texel = glam::Vec4::new(1.0, 0.25, 0.0, 1.0);
     scene.textures.push(rtd::scene::Texture::new(1, 1, vec![texel], Default::default(), Default::default(), false));
     let mut m = material(Vec3::ONE, 1.0, 0.0, 0.0);
-    m.base_color_texture = Some(rtd::scene::TextureRef { texture: 0, transform: None });
+    m.base_color_texture = Some(rtd::scene::TextureRef::plain(0));
     scene.materials.push(m);
     quad(&mut scene, Vec3::new(-2., -2., 0.), Vec3::new(2., -2., 0.), Vec3::new(2., 2., 0.), Vec3::new(-2., 2., 0.), 0);
     let cam = Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0);

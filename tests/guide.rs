@@ -315,7 +315,7 @@ fn textures_finer_than_a_pixel_are_averaged_not_aliased() {
     s.textures.push(Texture::new(n, n, texels, Wrap::Repeat, Wrap::Repeat, false));
     let mut m = white();
     m.base_color = Vec4::ONE;
-    m.base_color_texture = Some(TextureRef { texture: 0, transform: None });
+    m.base_color_texture = Some(TextureRef::plain(0));
     s.materials.push(m);
     // A 40 × 40 floor with the texture repeated every half unit.
     let b = 20.0;

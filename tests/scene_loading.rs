@@ -223,6 +223,54 @@ fn image_rgba(px: &[[u8; 4]]) -> Vec<u8> {
     out
 }
 
+/// A texture whose `texCoord` is 1 reads `TEXCOORD_1`; the others keep reading set 0.
+#[test]
+fn a_texture_reads_the_uv_set_its_tex_coord_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let uri = png_data_uri(dir.path());
+    let mats = json!([{
+        "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": 0, "texCoord": 1},
+            "metallicRoughnessTexture": {"index": 0}
+        }
+    }]);
+    let extra = [
+        ("images", json!([{"uri": uri}])),
+        ("samplers", json!([{"magFilter": 9728, "minFilter": 9728}])),
+        ("textures", json!([{"source": 0, "sampler": 0}])),
+    ];
+    let (mut doc, mut buf) = quad_gltf(json!([{"mesh": 0}]), mats, &extra);
+    // Set 1 is set 0 mirrored in u: texture u = 1 − quad x.
+    let offset = buf.len();
+    buf.extend(f32_bytes(&[1.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0]));
+    doc["buffers"][0]["byteLength"] = json!(buf.len());
+    doc["bufferViews"].as_array_mut().unwrap().push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 32}));
+    doc["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC2"}));
+    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(3);
+    let s = load_scene(&write_gltf(dir.path(), "t.gltf", doc, &buf)).unwrap();
+    assert!(s.warnings.iter().all(|w| !w.contains("TEXCOORD")), "{:?}", s.warnings);
+    let bvh = SceneBvh::build(&s);
+    let surface = |x: f32| {
+        let hit = bvh.intersect(&s, Vec3::new(x, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+        rtd::render::surface::Surface::new(&s, &hit).params
+    };
+    // The left texel is opaque blue-violet (128, 64, 255), the right one green (10, 200, 30).
+    // Quad x = 0.2 is texture u = 0.2 in set 0 and 0.8 in set 1.
+    let (left, right) = (surface(0.2), surface(0.8));
+    assert!(
+        left.base_color.y > 0.5 && left.base_color.z < 0.05,
+        "set 1 at x 0.2 is the green texel: {}",
+        left.base_color
+    );
+    assert!(right.base_color.z > 0.9, "set 1 at x 0.8 is the violet texel: {}", right.base_color);
+    // Metallic-roughness reads set 0: the left texel's roughness G = 64/255 at x 0.2.
+    assert!((left.roughness - 64.0 / 255.0).abs() < 1e-6, "{}", left.roughness);
+    assert!((right.roughness - 200.0 / 255.0).abs() < 1e-6, "{}", right.roughness);
+}
+
 #[test]
 fn textures_are_linearised_transformed_and_cut_out() {
     let dir = tempfile::tempdir().unwrap();
@@ -245,11 +293,11 @@ fn textures_are_linearised_transformed_and_cut_out() {
     let m = &s.materials[0];
     assert_eq!(s.textures.len(), 2, "one sRGB and one linear decode of the same image");
     // uv (0.2, 0.5) → transform → (0.6, 0.5): the right texel (transparent, green).
-    let p = m.evaluate(&s.textures, Vec2::new(0.2, 0.5));
+    let p = m.evaluate(&s.textures, Vec2::new(0.2, 0.5).into());
     assert!((p.base_color - Vec3::new(0.003_035, 0.577_58, 0.012_983)).abs().max_element() < 1e-3, "{}", p.base_color);
     assert_eq!(p.alpha, 0.0);
     // Untransformed metallic-roughness at the left texel: G = 64/255 roughness, B = 1 metallic, linear.
-    let p = m.evaluate(&s.textures, Vec2::new(0.2, 0.5));
+    let p = m.evaluate(&s.textures, Vec2::new(0.2, 0.5).into());
     assert!((p.roughness - 64.0 / 255.0).abs() < 1e-6 && (p.metallic - 1.0).abs() < 1e-6, "{p:?}");
     // The cut-out lets rays through where the base colour texture's alpha is below 0.5:
     // texture u ≥ 0.5 is transparent, which the transform maps to quad u < 1.

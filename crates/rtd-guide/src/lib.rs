@@ -17,7 +17,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use rtd_image::{HdrImage, Layer, Layers};
-use rtd_render::surface::{shading_normal, Surface};
+use rtd_render::surface::{shading_normal, NormalMap, Surface};
 use rtd_render::{RenderError, RenderSettings, SceneBvh, Workers};
 use rtd_scene::{Camera, MaterialFootprint, Projection, Scene};
 
@@ -164,16 +164,11 @@ fn has_textures(m: &rtd_scene::Material) -> bool {
     m.base_color_texture.is_some() || m.normal_texture.is_some() || m.emissive_texture.is_some()
 }
 
-/// The texture filters of a sample's footprint on triangle `t` with material `m`, from the
+/// The texture filters of a sample's footprint on triangle `tri` with material `m`, from the
 /// footprint's barycentric steps `steps` (along screen x and y).
 #[inline]
-fn texture_footprint(
-    scene: &Scene,
-    t: &rtd_scene::Triangle,
-    m: &rtd_scene::Material,
-    steps: &[Vec3; 2],
-) -> MaterialFootprint {
-    let [du, dv] = steps.map(|d| t.uv[0] * d.x + t.uv[1] * d.y + t.uv[2] * d.z);
+fn texture_footprint(scene: &Scene, tri: u32, m: &rtd_scene::Material, steps: &[Vec3; 2]) -> MaterialFootprint {
+    let [du, dv] = scene.tex_coord_steps(tri, steps);
     m.footprint(&scene.textures, du, dv)
 }
 
@@ -207,18 +202,18 @@ fn shade_one_triangle(
     // the general path sums it where the albedo is too).
     let (albedo, depth) = if has_textures(m) {
         let f = if m.base_color_texture.is_some() {
-            texture_footprint(scene, t, m, &footprints.bary_steps(&first, SAMPLE_FOOTPRINT))
+            texture_footprint(scene, first.triangle, m, &footprints.bary_steps(&first, SAMPLE_FOOTPRINT))
         } else {
             MaterialFootprint::POINT
         };
         px.iter().flatten().fold((Vec3::ZERO, 0.0), |(albedo, d), h| {
             let b = h.bary;
-            let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+            let uv = scene.tex_coords(first.triangle, b);
             (albedo + m.albedo_filtered(&scene.textures, uv, &f) * inv, d + depth(b) * inv)
         })
     } else {
         let d = px.iter().flatten().map(|h| depth(h.bary)).sum::<f32>() / px.len() as f32;
-        (m.albedo(&scene.textures, Vec2::ZERO), d)
+        (m.albedo(&scene.textures, Vec2::ZERO.into()), d)
     };
     let centre = px[raster::SAMPLES / 2]?.bary;
     let p_centre = point(centre);
@@ -297,7 +292,12 @@ impl GuidePass {
                     match filters {
                         Some((tri, f)) if tri == hit.triangle => f,
                         _ => {
-                            let f = texture_footprint(scene, t, m, &footprints.bary_steps(hit, SAMPLE_FOOTPRINT));
+                            let f = texture_footprint(
+                                scene,
+                                hit.triangle,
+                                m,
+                                &footprints.bary_steps(hit, SAMPLE_FOOTPRINT),
+                            );
                             filters = Some((hit.triangle, f));
                             f
                         }
@@ -305,7 +305,7 @@ impl GuidePass {
                 } else {
                     MaterialFootprint::POINT
                 };
-                let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+                let uv = scene.tex_coords(hit.triangle, b);
                 let mut albedo = m.albedo_filtered(&scene.textures, uv, &f);
                 // COLOR_0 tints the base colour; emitters stay white in the albedo.
                 if !m.is_emissive() {
@@ -313,7 +313,9 @@ impl GuidePass {
                 }
                 let tangent = m.tangent_normal_filtered(&scene.textures, uv, &f);
                 out.albedo += albedo * inv;
-                out.normal += shading_normal(t, b, ng, tangent) * inv;
+                let normal_map =
+                    tangent.map(|value| NormalMap { value, uv: scene.uv_set(hit.triangle, m.normal_tex_coord()) });
+                out.normal += shading_normal(t, b, ng, normal_map) * inv;
                 out.depth += d * inv;
                 if s == n / 2 {
                     out.centre = Some(ao_point(camera, hit.triangle, t, b, p, ng, d));

@@ -400,9 +400,7 @@ fn raster_tri(
                 let (e0, e1) = (e0c + d0[s], e1c + d1[s]);
                 if let Some(cut) = cutoff {
                     let bary = t.bary(e0, e1);
-                    let tri = &scene.triangles[t.triangle as usize];
-                    let uv = tri.uv[0] * bary.x + tri.uv[1] * bary.y + tri.uv[2] * bary.z;
-                    if material.alpha(&scene.textures, uv) < cut {
+                    if material.alpha(&scene.textures, scene.tex_coords(t.triangle, bary)) < cut {
                         continue;
                     }
                 }

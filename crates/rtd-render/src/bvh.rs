@@ -188,7 +188,8 @@ impl SceneBvh {
             Some((cutoff, m)) => {
                 let uv = self.uvs[slot];
                 let p = uv[0] * b.x + uv[1] * b.y + uv[2] * b.z;
-                scene.materials[m as usize].alpha(&scene.textures, p) < cutoff
+                let uv = scene.tex_coords_from(self.slot_tri[slot], p, b);
+                scene.materials[m as usize].alpha(&scene.textures, uv) < cutoff
             }
         }
     }

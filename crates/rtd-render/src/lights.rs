@@ -59,12 +59,10 @@ pub struct LightSet {
 /// Emitted radiance of triangle `tri` at barycentrics `b`.
 #[inline]
 pub fn triangle_emission(scene: &Scene, tri: u32, b: Vec3) -> Vec3 {
-    let t = &scene.triangles[tri as usize];
-    let m = &scene.materials[t.material as usize];
+    let m = &scene.materials[scene.triangles[tri as usize].material as usize];
     let mut e = m.emissive;
     if let Some(tex) = &m.emissive_texture {
-        let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
-        e *= tex.sample(&scene.textures, uv).truncate();
+        e *= tex.sample(&scene.textures, scene.tex_coords(tri, b)).truncate();
     }
     e.max(Vec3::ZERO)
 }

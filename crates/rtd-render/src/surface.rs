@@ -1,7 +1,7 @@
 //! The local geometry and material at a ray hit, and robust spawning of new rays from it.
 
 use glam::{Vec2, Vec3};
-use rtd_scene::{Scene, SurfaceParams};
+use rtd_scene::{Scene, SurfaceParams, TexCoords};
 
 use crate::bvh::Hit;
 
@@ -19,8 +19,8 @@ pub struct Surface {
     pub ng: Vec3,
     /// Unit shading normal (interpolated, normal-mapped), on the same side as `ng`.
     pub ns: Vec3,
-    /// Texture coordinates.
-    pub uv: Vec2,
+    /// Texture coordinates (both sets).
+    pub uv: TexCoords,
     /// Scene triangle index.
     pub triangle: u32,
     /// The material evaluated here.
@@ -35,11 +35,14 @@ impl Surface {
         let p = t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
         let p_error = Self::error_bound(t, b);
         let ng = t.front_normal();
-        let uv = t.uv[0] * b.x + t.uv[1] * b.y + t.uv[2] * b.z;
+        let uv = scene.tex_coords(hit.triangle, b);
         let material = &scene.materials[t.material as usize];
         let mut params = material.evaluate(&scene.textures, uv);
         params.base_color *= scene.vertex_color(hit.triangle, b);
-        let ns = shading_normal(t, b, ng, params.tangent_normal);
+        let normal_map = params
+            .tangent_normal
+            .map(|value| NormalMap { value, uv: scene.uv_set(hit.triangle, material.normal_tex_coord()) });
+        let ns = shading_normal(t, b, ng, normal_map);
         Surface { p, p_error, ng, ns, uv, triangle: hit.triangle, params }
     }
 
@@ -57,13 +60,23 @@ impl Surface {
     }
 }
 
+/// A normal-map sample at a surface point.
+#[derive(Debug, Clone, Copy)]
+pub struct NormalMap {
+    /// The tangent-space normal read from the map.
+    pub value: Vec3,
+    /// The triangle's texture coordinates in the set the map reads; a tangent frame derived
+    /// from the UV parameterisation (no `TANGENT` in the file) follows this set.
+    pub uv: [Vec2; 3],
+}
+
 /// The unit shading normal at barycentrics `b`: interpolated vertex normals, perturbed by the
-/// tangent-space normal-map value `tangent_normal` if any, on the side of the front normal `ng`.
+/// normal map `normal_map` if any, on the side of the front normal `ng`.
 #[inline]
-pub fn shading_normal(t: &rtd_scene::Triangle, b: Vec3, ng: Vec3, tangent_normal: Option<Vec3>) -> Vec3 {
+pub fn shading_normal(t: &rtd_scene::Triangle, b: Vec3, ng: Vec3, normal_map: Option<NormalMap>) -> Vec3 {
     let mut ns = (t.n[0] * b.x + t.n[1] * b.y + t.n[2] * b.z).normalize_or(ng);
-    if let Some(tn) = tangent_normal {
-        ns = apply_normal_map(t, b, ns, tn).unwrap_or(ns);
+    if let Some(map) = normal_map {
+        ns = apply_normal_map(t, b, ns, map).unwrap_or(ns);
     }
     if ns.dot(ng) < 0.0 {
         -ns
@@ -92,7 +105,8 @@ pub fn offset_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
 }
 
 /// Perturbs the shading normal by a tangent-space normal map sample.
-fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, tn: Vec3) -> Option<Vec3> {
+fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, map: NormalMap) -> Option<Vec3> {
+    let (tn, uv) = (map.value, map.uv);
     let tangent4 = t.tangent[0] * b.x + t.tangent[1] * b.y + t.tangent[2] * b.z;
     let (tangent, sign) = if tangent4.truncate().length_squared() > 0.0 {
         (tangent4.truncate(), if t.tangent[0].w < 0.0 { -1.0 } else { 1.0 })
@@ -100,8 +114,8 @@ fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, tn: Vec3) -> Opt
         // No tangents in the file: derive dp/du from the UV parameterisation.
         let dp1 = t.p[1] - t.p[0];
         let dp2 = t.p[2] - t.p[0];
-        let duv1 = t.uv[1] - t.uv[0];
-        let duv2 = t.uv[2] - t.uv[0];
+        let duv1 = uv[1] - uv[0];
+        let duv2 = uv[2] - uv[0];
         let det = duv1.x * duv2.y - duv1.y * duv2.x;
         if det.abs() < 1e-12 {
             return None;
@@ -124,6 +138,26 @@ fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, tn: Vec3) -> Opt
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_derived_tangent_frame_follows_the_normal_maps_uv_set() {
+        // A triangle in z = 0 whose set 0 has u along +x; set 1 is rotated so u runs along +y.
+        let t = rtd_scene::Triangle {
+            p: [Vec3::ZERO, Vec3::X, Vec3::Y],
+            n: [Vec3::Z; 3],
+            uv: [Vec2::ZERO, Vec2::X, Vec2::Y],
+            tangent: [glam::Vec4::ZERO; 3],
+            material: 0,
+        };
+        let set1 = [Vec2::ZERO, Vec2::Y, Vec2::X];
+        // A map value tilted towards +u must tilt the normal towards that set's dp/du.
+        let value = Vec3::new(1.0, 0.0, 1.0).normalize();
+        let b = Vec3::splat(1.0 / 3.0);
+        let n0 = shading_normal(&t, b, Vec3::Z, Some(NormalMap { value, uv: t.uv }));
+        let n1 = shading_normal(&t, b, Vec3::Z, Some(NormalMap { value, uv: set1 }));
+        assert!(n0.abs_diff_eq(value, 1e-5), "{n0}");
+        assert!(n1.abs_diff_eq(Vec3::new(0.0, value.x, value.z), 1e-5), "{n1}");
+    }
 
     #[test]
     fn offset_escapes_rounding_at_any_scale() {

@@ -15,7 +15,7 @@ use crate::{AccessorProblem, SceneError};
 
 /// Component types read as floats.
 const FLOAT: &[DataType] = &[DataType::F32];
-/// Component types `TEXCOORD_0` may have: float or normalised unsigned integers.
+/// Component types `TEXCOORD_n` (and `COLOR_0`) may have: float or normalised unsigned integers.
 const TEXCOORD_TYPES: &[DataType] = &[DataType::F32, DataType::U8, DataType::U16];
 /// Component types indices may have.
 const INDEX_TYPES: &[DataType] = &[DataType::U8, DataType::U16, DataType::U32];
@@ -65,7 +65,7 @@ pub(crate) fn check_buffer_views(document: &gltf::Document, path: &Path) -> Resu
 
 /// Checks every accessor of a triangle primitive: first that each attribute and the indices lie
 /// inside their buffer views, then that the ones rtd reads (POSITION, NORMAL, TANGENT,
-/// TEXCOORD_0, indices) have an element type it reads and, for attributes, POSITION's count.
+/// TEXCOORD_0 and _1, COLOR_0, indices) have an element type it reads and, for attributes, POSITION's count.
 pub(crate) fn check_primitive(prim: &gltf::Primitive, site: MeshSite) -> Result<(), SceneError> {
     for (_, accessor) in prim.attributes() {
         check_layout(&accessor, site)?;
@@ -120,7 +120,7 @@ fn attribute_types(semantic: &Semantic) -> Option<(Dimensions, &'static [DataTyp
     match semantic {
         Semantic::Positions | Semantic::Normals => Some((Dimensions::Vec3, FLOAT)),
         Semantic::Tangents => Some((Dimensions::Vec4, FLOAT)),
-        Semantic::TexCoords(0) => Some((Dimensions::Vec2, TEXCOORD_TYPES)),
+        Semantic::TexCoords(0 | 1) => Some((Dimensions::Vec2, TEXCOORD_TYPES)),
         _ => None,
     }
 }

@@ -7,7 +7,8 @@ use gltf::image::Format;
 use crate::gltf_accessors::{check_buffer_views, check_indices, check_primitive, MeshSite};
 use crate::light::LUMENS_PER_WATT;
 use crate::{
-    AlphaMode, Camera, Light, Material, Projection, Scene, SceneError, Texture, TextureRef, Triangle, UvTransform, Wrap,
+    AlphaMode, Camera, Light, Material, Projection, Scene, SceneError, Texture, TextureRef, Triangle, TriangleExtras,
+    UvTransform, Wrap,
 };
 
 /// glTF extensions rtd implements; a file that *requires* any other is rejected by name.
@@ -41,7 +42,7 @@ pub fn load_gltf_scene(path: &Path, choice: Option<&str>) -> Result<Scene, Scene
     for ext in document.extensions_used().filter(|e| !SUPPORTED_GLTF_EXTENSIONS.contains(e)) {
         scene.warnings.push(format!("ignoring unsupported optional extension {ext}"));
     }
-    let mut textures = TextureCache { images: &images, map: HashMap::new(), warned_texcoord: false };
+    let mut textures = TextureCache { images: &images, map: HashMap::new(), warned_texcoord: false, uses_set1: false };
     for m in document.materials() {
         let mat = convert_material(&m, &mut textures, &mut scene);
         scene.materials.push(mat);
@@ -50,9 +51,10 @@ pub fn load_gltf_scene(path: &Path, choice: Option<&str>) -> Result<Scene, Scene
     scene.materials.push(Material::default());
 
     let gscene = pick_scene(path, &document, choice, &mut scene)?;
+    let read_set1 = textures.uses_set1;
     let skipped_primitives = match gscene {
         Some(gscene) => {
-            let mut nodes = NodeVisitor { path, buffers: &buffers, default_material, skipped_primitives: 0 };
+            let mut nodes = NodeVisitor { path, buffers: &buffers, default_material, read_set1, skipped_primitives: 0 };
             nodes.visit(&gscene, &mut scene)?;
             nodes.skipped_primitives
         }
@@ -134,6 +136,8 @@ struct NodeVisitor<'a> {
     path: &'a Path,
     buffers: &'a [gltf::buffer::Data],
     default_material: u32,
+    /// Whether to read `TEXCOORD_1` (some texture reads it).
+    read_set1: bool,
     /// Primitives skipped because they are points or lines or have no positions.
     skipped_primitives: usize,
 }
@@ -152,7 +156,7 @@ impl NodeVisitor<'_> {
             if let Some(mesh) = node.mesh() {
                 let site = MeshSite { path: self.path, index: mesh.index(), name: mesh.name() };
                 for prim in mesh.primitives() {
-                    if !add_primitive(&prim, site, world, self.buffers, self.default_material, scene)? {
+                    if !self.add_primitive(&prim, site, world, scene)? {
                         self.skipped_primitives += 1;
                     }
                 }
@@ -170,6 +174,67 @@ impl NodeVisitor<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Adds one primitive's triangles in world space. Returns `Ok(false)` for a primitive skipped
+    /// as unusual (points or lines, or no positions), and an error for a corrupt one.
+    fn add_primitive(
+        &self,
+        prim: &gltf::Primitive,
+        site: MeshSite,
+        world: Mat4,
+        scene: &mut Scene,
+    ) -> Result<bool, SceneError> {
+        use gltf::mesh::Mode;
+        if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            return Ok(false);
+        }
+        check_primitive(prim, site)?;
+        let reader = prim.reader(|b| self.buffers.get(b.index()).map(|d| d.0.as_slice()));
+        let Some(positions) = reader.read_positions() else {
+            return Ok(false);
+        };
+        let positions: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
+        let m3 = Mat3::from_mat4(world);
+        let normal_matrix = m3.inverse().transpose();
+        let normals: Option<Vec<Vec3>> =
+            reader.read_normals().map(|n| n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero()).collect());
+        let tangents: Option<Vec<Vec4>> = reader
+            .read_tangents()
+            .map(|t| t.map(|t| (m3 * Vec3::new(t[0], t[1], t[2])).normalize_or_zero().extend(t[3])).collect());
+        let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
+        let uv1: Option<Vec<Vec2>> = match self.read_set1 {
+            true => reader.read_tex_coords(1).map(|t| t.into_f32().map(Vec2::from).collect()),
+            false => None,
+        };
+        // COLOR_0 multiplies the base colour (its alpha is not read).
+        let colors: Option<Vec<Vec3>> = reader.read_colors(0).map(|c| c.into_rgb_f32().map(Vec3::from).collect());
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..positions.len() as u32).collect(),
+        };
+        check_indices(prim, &indices, positions.len(), site)?;
+        // A mirroring transform flips winding; swap two vertices so front faces stay front.
+        let mirrored = m3.determinant() < 0.0;
+        let material = prim.material().index().map(|i| i as u32).unwrap_or(self.default_material);
+        for mut t in triangles(prim.mode(), &indices) {
+            if mirrored {
+                t.swap(1, 2);
+            }
+            let triangle = Triangle {
+                p: t.map(|i| positions[i as usize]),
+                n: t.map(|i| attribute(&normals, i, Vec3::ZERO)),
+                uv: t.map(|i| attribute(&uvs, i, Vec2::ZERO)),
+                tangent: t.map(|i| attribute(&tangents, i, Vec4::ZERO)),
+                material,
+            };
+            let extras = TriangleExtras {
+                colors: colors.as_ref().map(|_| t.map(|i| attribute(&colors, i, Vec3::ONE))),
+                uv1: uv1.as_ref().map(|_| t.map(|i| attribute(&uv1, i, Vec2::ZERO))),
+            };
+            scene.push_triangle_with(triangle, extras);
+        }
+        Ok(true)
     }
 }
 
@@ -190,6 +255,8 @@ struct TextureCache<'a> {
     images: &'a [gltf::image::Data],
     map: HashMap<(usize, bool), (u32, Texture)>,
     warned_texcoord: bool,
+    /// Whether some texture reads `TEXCOORD_1` (then meshes keep their second set).
+    uses_set1: bool,
 }
 
 impl TextureCache<'_> {
@@ -217,14 +284,28 @@ impl TextureCache<'_> {
             UvTransform { offset: Vec2::from(t.offset()), rotation: t.rotation(), scale: Vec2::from(t.scale()) }
                 .matrix()
         });
-        self.warn_texcoord(tex_coord, scene);
-        Some(TextureRef { texture: self.get(info.texture(), srgb), transform })
+        let tex_coord = self.tex_coord(tex_coord, scene);
+        Some(TextureRef { texture: self.get(info.texture(), srgb), transform, tex_coord })
     }
 
-    fn warn_texcoord(&mut self, tex_coord: u32, scene: &mut Scene) {
-        if tex_coord != 0 && !self.warned_texcoord {
-            self.warned_texcoord = true;
-            scene.warnings.push(format!("a texture uses TEXCOORD_{tex_coord}; rtd reads TEXCOORD_0 only"));
+    /// The set a texture reads, noting set 1's use; sets past 1 (which Blender and the other
+    /// common exporters never write) read set 0, with one warning.
+    fn tex_coord(&mut self, tex_coord: u32, scene: &mut Scene) -> u8 {
+        match tex_coord {
+            0 => 0,
+            1 => {
+                self.uses_set1 = true;
+                1
+            }
+            _ => {
+                if !self.warned_texcoord {
+                    self.warned_texcoord = true;
+                    scene.warnings.push(format!(
+                        "a texture uses TEXCOORD_{tex_coord}; rtd reads sets 0 and 1, so it reads set 0"
+                    ));
+                }
+                0
+            }
         }
     }
 }
@@ -285,7 +366,8 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
     let strength = m.emissive_strength().unwrap_or(1.0);
     let normal_texture = m.normal_texture().map(|n| {
         // gltf 1.4 exposes no texture_transform() on normal textures; read the extension by hand.
-        let transform = n.extension_value("KHR_texture_transform").map(|v| {
+        let ext = n.extension_value("KHR_texture_transform");
+        let transform = ext.map(|v| {
             let pair = |k: &str, d: f32| {
                 let a = v.get(k).and_then(|x| x.as_array());
                 let f = |i: usize| a.and_then(|a| a.get(i)).and_then(|x| x.as_f64()).map(|x| x as f32).unwrap_or(d);
@@ -294,8 +376,10 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
             let rotation = v.get("rotation").and_then(|x| x.as_f64()).unwrap_or(0.0) as f32;
             UvTransform { offset: pair("offset", 0.0), rotation, scale: pair("scale", 1.0) }.matrix()
         });
-        textures.warn_texcoord(n.tex_coord(), scene);
-        (TextureRef { texture: textures.get(n.texture(), false), transform }, n.scale())
+        // The extension's texCoord, when given, overrides the slot's.
+        let set = ext.and_then(|v| v.get("texCoord")).and_then(|x| x.as_u64()).map_or(n.tex_coord(), |x| x as u32);
+        let tex_coord = textures.tex_coord(set, scene);
+        (TextureRef { texture: textures.get(n.texture(), false), transform, tex_coord }, n.scale())
     });
     let (transmission, transmission_texture) = match m.transmission() {
         Some(t) => (t.transmission_factor(), textures.info(t.transmission_texture(), false, scene)),
@@ -348,61 +432,6 @@ fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light
             Light::spot(position, direction, color, inner_cone_angle, outer_cone_angle)
         }
     }
-}
-
-/// Adds one primitive's triangles in world space. Returns `Ok(false)` for a primitive skipped
-/// as unusual (points or lines, or no positions), and an error for a corrupt one.
-fn add_primitive(
-    prim: &gltf::Primitive,
-    site: MeshSite,
-    world: Mat4,
-    buffers: &[gltf::buffer::Data],
-    default_material: u32,
-    scene: &mut Scene,
-) -> Result<bool, SceneError> {
-    use gltf::mesh::Mode;
-    if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
-        return Ok(false);
-    }
-    check_primitive(prim, site)?;
-    let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
-    let Some(positions) = reader.read_positions() else {
-        return Ok(false);
-    };
-    let positions: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
-    let m3 = Mat3::from_mat4(world);
-    let normal_matrix = m3.inverse().transpose();
-    let normals: Option<Vec<Vec3>> =
-        reader.read_normals().map(|n| n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero()).collect());
-    let tangents: Option<Vec<Vec4>> = reader
-        .read_tangents()
-        .map(|t| t.map(|t| (m3 * Vec3::new(t[0], t[1], t[2])).normalize_or_zero().extend(t[3])).collect());
-    let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
-    // COLOR_0 multiplies the base colour (its alpha is not read).
-    let colors: Option<Vec<Vec3>> = reader.read_colors(0).map(|c| c.into_rgb_f32().map(Vec3::from).collect());
-    let indices: Vec<u32> = match reader.read_indices() {
-        Some(i) => i.into_u32().collect(),
-        None => (0..positions.len() as u32).collect(),
-    };
-    check_indices(prim, &indices, positions.len(), site)?;
-    // A mirroring transform flips winding; swap two vertices so front faces stay front.
-    let mirrored = m3.determinant() < 0.0;
-    let material = prim.material().index().map(|i| i as u32).unwrap_or(default_material);
-    for mut t in triangles(prim.mode(), &indices) {
-        if mirrored {
-            t.swap(1, 2);
-        }
-        let triangle = Triangle {
-            p: t.map(|i| positions[i as usize]),
-            n: t.map(|i| attribute(&normals, i, Vec3::ZERO)),
-            uv: t.map(|i| attribute(&uvs, i, Vec2::ZERO)),
-            tangent: t.map(|i| attribute(&tangents, i, Vec4::ZERO)),
-            material,
-        };
-        let vertex_colors = colors.as_ref().map(|_| t.map(|i| attribute(&colors, i, Vec3::ONE)));
-        scene.push_colored_triangle(triangle, vertex_colors);
-    }
-    Ok(true)
 }
 
 /// The vertex triples of a triangle list, strip or fan; none for points and lines.

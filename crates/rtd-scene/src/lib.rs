@@ -28,9 +28,9 @@ pub use environment::{EnvMap, Environment, EnvironmentChoice};
 pub use error::{AccessorProblem, SceneError};
 pub use gltf_import::{load_gltf, load_gltf_scene, SUPPORTED_GLTF_EXTENSIONS};
 pub use light::{Light, LUMENS_PER_WATT};
-pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TextureRef, UvTransform};
+pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TexCoords, TextureRef, UvTransform};
 pub use obj_import::load_obj;
-pub use scene::{Scene, Triangle};
+pub use scene::{Scene, Triangle, TriangleExtras};
 pub use texture::{FootprintFilter, Texture, Wrap};
 
 use std::path::Path;

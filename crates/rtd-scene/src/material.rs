@@ -26,6 +26,31 @@ impl UvTransform {
     }
 }
 
+/// The texture coordinates of one surface point (or one footprint step): set 0 (`TEXCOORD_0`)
+/// and set 1 (`TEXCOORD_1`, a copy of set 0 where the mesh has no second set).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TexCoords(pub [Vec2; 2]);
+
+impl TexCoords {
+    /// The same coordinates in both sets.
+    #[inline]
+    pub fn uniform(uv: Vec2) -> Self {
+        TexCoords([uv, uv])
+    }
+
+    /// Set `set` (0 or 1; higher sets are not kept and read set 0).
+    #[inline]
+    pub fn set(&self, set: u8) -> Vec2 {
+        self.0[if set == 1 { 1 } else { 0 }]
+    }
+}
+
+impl From<Vec2> for TexCoords {
+    fn from(uv: Vec2) -> Self {
+        TexCoords::uniform(uv)
+    }
+}
+
 /// A reference from a material slot to a texture.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TextureRef {
@@ -33,12 +58,21 @@ pub struct TextureRef {
     pub texture: u32,
     /// Optional UV transform (`KHR_texture_transform`), stored as a matrix.
     pub transform: Option<Mat3>,
+    /// The set of texture coordinates it reads (`texCoord`, after `KHR_texture_transform`'s
+    /// override): 0 or 1.
+    pub tex_coord: u8,
 }
 
 impl TextureRef {
-    /// Samples the texture at `uv` after the UV transform.
+    /// A reference to `texture` through set 0 with no transform.
+    pub fn plain(texture: u32) -> Self {
+        TextureRef { texture, transform: None, tex_coord: 0 }
+    }
+
+    /// Samples the texture at `uv` (its own set of it) after the UV transform.
     #[inline]
-    pub fn sample(&self, textures: &[Texture], uv: Vec2) -> Vec4 {
+    pub fn sample(&self, textures: &[Texture], uv: TexCoords) -> Vec4 {
+        let uv = uv.set(self.tex_coord);
         let uv = match self.transform {
             Some(m) => (m * uv.extend(1.0)).truncate(),
             None => uv,
@@ -49,7 +83,8 @@ impl TextureRef {
     /// The filter of the footprint spanned by UV steps `du`, `dv` (before the UV transform): see
     /// [`Texture::sample_footprint`].
     #[inline]
-    pub fn footprint_filter(&self, textures: &[Texture], du: Vec2, dv: Vec2) -> FootprintFilter {
+    pub fn footprint_filter(&self, textures: &[Texture], du: TexCoords, dv: TexCoords) -> FootprintFilter {
+        let (du, dv) = (du.set(self.tex_coord), dv.set(self.tex_coord));
         let (du, dv) = match self.transform {
             Some(m) => ((m * du.extend(0.0)).truncate(), (m * dv.extend(0.0)).truncate()),
             None => (du, dv),
@@ -59,7 +94,8 @@ impl TextureRef {
 
     /// The texture at `uv` (before the UV transform) through `filter`.
     #[inline]
-    pub fn sample_filtered(&self, textures: &[Texture], filter: &FootprintFilter, uv: Vec2) -> Vec4 {
+    pub fn sample_filtered(&self, textures: &[Texture], filter: &FootprintFilter, uv: TexCoords) -> Vec4 {
+        let uv = uv.set(self.tex_coord);
         let uv = match self.transform {
             Some(m) => (m * uv.extend(1.0)).truncate(),
             None => uv,
@@ -213,7 +249,7 @@ impl Material {
 
     /// Coverage alpha at `uv` (base colour alpha × texture alpha).
     #[inline]
-    pub fn alpha(&self, textures: &[Texture], uv: Vec2) -> f32 {
+    pub fn alpha(&self, textures: &[Texture], uv: TexCoords) -> f32 {
         let mut a = self.base_color.w;
         if let Some(t) = &self.base_color_texture {
             a *= t.sample(textures, uv).w;
@@ -223,7 +259,7 @@ impl Material {
 
     /// Base colour × texture at `uv` (RGB and alpha, unclamped).
     #[inline]
-    fn base_rgba(&self, textures: &[Texture], uv: Vec2) -> Vec4 {
+    fn base_rgba(&self, textures: &[Texture], uv: TexCoords) -> Vec4 {
         match &self.base_color_texture {
             Some(t) => self.base_color * t.sample(textures, uv),
             None => self.base_color,
@@ -232,7 +268,7 @@ impl Material {
 
     /// True if the surface emits at `uv` (emissive factor × emissive texture has a positive channel).
     #[inline]
-    pub fn emits_at(&self, textures: &[Texture], uv: Vec2) -> bool {
+    pub fn emits_at(&self, textures: &[Texture], uv: TexCoords) -> bool {
         self.is_emissive()
             && self
                 .emissive_texture
@@ -246,13 +282,18 @@ impl Material {
     /// as it is; with its base colour (often black) it would be divided by ~0 and its edges would
     /// bleed into the surfaces around it.
     #[inline]
-    pub fn albedo(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+    pub fn albedo(&self, textures: &[Texture], uv: TexCoords) -> Vec3 {
         self.albedo_filtered(textures, uv, &MaterialFootprint::POINT)
+    }
+
+    /// The UV set the normal map reads, which is also the set its tangent frame follows.
+    pub fn normal_tex_coord(&self) -> u8 {
+        self.normal_texture.as_ref().map_or(0, |t| t.tex_coord)
     }
 
     /// Tangent-space normal from the normal map (scaled, unnormalised), if the material has one.
     #[inline]
-    pub fn tangent_normal(&self, textures: &[Texture], uv: Vec2) -> Option<Vec3> {
+    pub fn tangent_normal(&self, textures: &[Texture], uv: TexCoords) -> Option<Vec3> {
         self.normal_texture.as_ref().map(|t| self.decode_normal(t.sample(textures, uv)))
     }
 
@@ -266,7 +307,7 @@ impl Material {
     /// The filters for a footprint spanned by UV steps `du`, `dv`, for
     /// [`Material::albedo_filtered`] and [`Material::tangent_normal_filtered`].
     #[inline]
-    pub fn footprint(&self, textures: &[Texture], du: Vec2, dv: Vec2) -> MaterialFootprint {
+    pub fn footprint(&self, textures: &[Texture], du: TexCoords, dv: TexCoords) -> MaterialFootprint {
         let filter =
             |t: &Option<TextureRef>| t.map_or(FootprintFilter::POINT, |t| t.footprint_filter(textures, du, dv));
         MaterialFootprint { base: filter(&self.base_color_texture), normal: filter(&self.normal_texture) }
@@ -276,7 +317,7 @@ impl Material {
     /// [`Material::footprint`] worked out, as a pixel sees a texture finer than itself: the guide
     /// pass's anti-aliased lookup.
     #[inline]
-    pub fn albedo_filtered(&self, textures: &[Texture], uv: Vec2, footprint: &MaterialFootprint) -> Vec3 {
+    pub fn albedo_filtered(&self, textures: &[Texture], uv: TexCoords, footprint: &MaterialFootprint) -> Vec3 {
         if self.emits_at(textures, uv) {
             return Vec3::ONE;
         }
@@ -292,14 +333,14 @@ impl Material {
     pub fn tangent_normal_filtered(
         &self,
         textures: &[Texture],
-        uv: Vec2,
+        uv: TexCoords,
         footprint: &MaterialFootprint,
     ) -> Option<Vec3> {
         self.normal_texture.as_ref().map(|t| self.decode_normal(t.sample_filtered(textures, &footprint.normal, uv)))
     }
 
     /// Evaluates every factor and texture at `uv`.
-    pub fn evaluate(&self, textures: &[Texture], uv: Vec2) -> SurfaceParams {
+    pub fn evaluate(&self, textures: &[Texture], uv: TexCoords) -> SurfaceParams {
         let base = self.base_rgba(textures, uv);
         let (mut metallic, mut roughness) = (self.metallic, self.roughness);
         if let Some(t) = &self.metallic_roughness_texture {
@@ -356,10 +397,10 @@ mod tests {
     #[test]
     fn emitters_record_white_albedo() {
         let mut m = Material { base_color: Vec4::new(0.2, 0.4, 0.6, 1.0), ..Material::default() };
-        assert_eq!(m.albedo(&[], Vec2::ZERO), Vec3::new(0.2, 0.4, 0.6));
+        assert_eq!(m.albedo(&[], Vec2::ZERO.into()), Vec3::new(0.2, 0.4, 0.6));
         m.emissive = Vec3::new(0.0, 3.0, 0.0);
-        assert!(m.emits_at(&[], Vec2::ZERO));
-        assert_eq!(m.albedo(&[], Vec2::ZERO), Vec3::ONE);
+        assert!(m.emits_at(&[], Vec2::ZERO.into()));
+        assert_eq!(m.albedo(&[], Vec2::ZERO.into()), Vec3::ONE);
     }
 
     #[test]
@@ -377,12 +418,12 @@ mod tests {
         let m = Material {
             roughness: 0.8,
             metallic: 1.0,
-            metallic_roughness_texture: Some(TextureRef { texture: 0, transform: None }),
+            metallic_roughness_texture: Some(TextureRef::plain(0)),
             base_color: Vec4::new(2.0, 0.5, f32::NAN, 1.0),
             ior: 0.5,
             ..Material::default()
         };
-        let s = m.evaluate(&textures, Vec2::ZERO);
+        let s = m.evaluate(&textures, Vec2::ZERO.into());
         assert_eq!(s.roughness, 0.4);
         assert_eq!(s.metallic, 0.25);
         assert_eq!(s.base_color, Vec3::new(1.0, 0.5, 0.0));

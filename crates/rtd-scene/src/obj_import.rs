@@ -142,7 +142,7 @@ fn convert_material(m: &tobj::Material, dir: &Path, scene: &mut Scene) -> Materi
         match load_texture(&file) {
             Ok(t) => {
                 scene.textures.push(t);
-                mat.base_color_texture = Some(TextureRef { texture: scene.textures.len() as u32 - 1, transform: None });
+                mat.base_color_texture = Some(TextureRef::plain(scene.textures.len() as u32 - 1));
             }
             Err(e) => scene.warnings.push(format!("material {}: texture {} not loaded: {e}", m.name, file.display())),
         }

@@ -1,6 +1,6 @@
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::{Aabb, Camera, Environment, Light, Material, Texture};
+use crate::{Aabb, Camera, Environment, Light, Material, TexCoords, Texture};
 
 /// One world-space triangle with per-vertex shading attributes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,6 +67,31 @@ pub struct Scene {
     /// colour; empty when no mesh has them (then every triangle is white). See
     /// [`Scene::vertex_color`].
     pub vertex_colors: Vec<[Vec3; 3]>,
+    /// The second set of texture coordinates (glTF `TEXCOORD_1`) per triangle, for textures
+    /// whose `texCoord` is 1; empty when no texture reads that set. Triangles without the set
+    /// repeat set 0. See [`Scene::tex_coords`].
+    pub uv1: Vec<[Vec2; 3]>,
+}
+
+/// The attributes of a triangle that live in the [`Scene`]'s side tables (tables that exist only
+/// once some triangle has the attribute), for [`Scene::push_triangle_with`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TriangleExtras {
+    /// Linear vertex colours (None: white).
+    pub colors: Option<[Vec3; 3]>,
+    /// Texture coordinates of set 1 (None: the triangle's set 0).
+    pub uv1: Option<[Vec2; 3]>,
+}
+
+/// Appends `value` (or `default` when None) to a side table of `len - 1` earlier rows, creating
+/// the table filled with `fill(row)` the first time a value comes.
+fn push_side<T: Copy>(table: &mut Vec<T>, len: usize, value: Option<T>, fill: impl Fn(usize) -> T, default: T) {
+    if value.is_some() && table.is_empty() {
+        *table = (0..len - 1).map(&fill).collect();
+    }
+    if value.is_some() || !table.is_empty() {
+        table.push(value.unwrap_or(default));
+    }
 }
 
 impl Scene {
@@ -101,19 +126,26 @@ impl Scene {
         true
     }
 
-    /// [`Scene::push_triangle`] with the triangle's vertex colours (None: white). Colours are
-    /// kept only once some triangle has them; non-finite or negative values become 0.
-    pub fn push_colored_triangle(&mut self, t: Triangle, colors: Option<[Vec3; 3]>) -> bool {
+    /// [`Scene::push_triangle`] with the triangle's side-table attributes. Colours are kept only
+    /// once some triangle has them (non-finite or negative values become 0), and likewise set 1
+    /// of the texture coordinates (non-finite values become 0).
+    pub fn push_triangle_with(&mut self, t: Triangle, extras: TriangleExtras) -> bool {
         if !self.push_triangle(t) {
             return false;
         }
-        if colors.is_some() && self.vertex_colors.is_empty() {
-            self.vertex_colors = vec![[Vec3::ONE; 3]; self.triangles.len() - 1];
-        }
-        if !self.vertex_colors.is_empty() || colors.is_some() {
-            let clean = |c: Vec3| if c.is_finite() { c.max(Vec3::ZERO) } else { Vec3::ZERO };
-            self.vertex_colors.push(colors.map_or([Vec3::ONE; 3], |c| c.map(clean)));
-        }
+        let len = self.triangles.len();
+        let clean = |c: Vec3| if c.is_finite() { c.max(Vec3::ZERO) } else { Vec3::ZERO };
+        push_side(
+            &mut self.vertex_colors,
+            len,
+            extras.colors.map(|c| c.map(clean)),
+            |_| [Vec3::ONE; 3],
+            [Vec3::ONE; 3],
+        );
+        let finite = |uv: Vec2| if uv.is_finite() { uv } else { Vec2::ZERO };
+        let own = self.triangles[len - 1].uv;
+        let triangles = &self.triangles;
+        push_side(&mut self.uv1, len, extras.uv1.map(|u| u.map(finite)), |i| triangles[i].uv, own);
         true
     }
 
@@ -124,6 +156,45 @@ impl Scene {
             Some(c) => c[0] * b.x + c[1] * b.y + c[2] * b.z,
             None => Vec3::ONE,
         }
+    }
+
+    /// Both sets of texture coordinates of triangle `tri` at barycentrics `b` (set 1 repeats set
+    /// 0 where the scene has no second set).
+    #[inline]
+    pub fn tex_coords(&self, tri: u32, b: Vec3) -> TexCoords {
+        let uv = self.triangles[tri as usize].uv;
+        self.tex_coords_from(tri, uv[0] * b.x + uv[1] * b.y + uv[2] * b.z, b)
+    }
+
+    /// The per-vertex texture coordinates of set `set` (0 or 1) of triangle `tri` (set 1
+    /// repeats set 0 where the scene has no second set).
+    #[inline]
+    pub fn uv_set(&self, tri: u32, set: u8) -> [Vec2; 3] {
+        match (set, self.uv1.get(tri as usize)) {
+            (1, Some(u)) => *u,
+            _ => self.triangles[tri as usize].uv,
+        }
+    }
+
+    /// [`Scene::tex_coords`] for a caller that has set 0 at `b` already (`uv0`).
+    #[inline]
+    pub fn tex_coords_from(&self, tri: u32, uv0: Vec2, b: Vec3) -> TexCoords {
+        match self.uv1.get(tri as usize) {
+            Some(u) => TexCoords([uv0, u[0] * b.x + u[1] * b.y + u[2] * b.z]),
+            None => TexCoords([uv0, uv0]),
+        }
+    }
+
+    /// The texture-coordinate steps of both sets along barycentric steps `steps` on triangle
+    /// `tri` (a pixel footprint's edges, for the texture filters).
+    #[inline]
+    pub fn tex_coord_steps(&self, tri: u32, steps: &[Vec3; 2]) -> [TexCoords; 2] {
+        let uv = self.triangles[tri as usize].uv;
+        let step = |u: &[Vec2; 3], d: Vec3| u[0] * d.x + u[1] * d.y + u[2] * d.z;
+        steps.map(|d| {
+            let s0 = step(&uv, d);
+            TexCoords([s0, self.uv1.get(tri as usize).map_or(s0, |u| step(u, d))])
+        })
     }
 
     /// Records the skipped-triangle counts as warnings; importers call this once at the end.
