@@ -271,6 +271,34 @@ fn a_texture_reads_the_uv_set_its_tex_coord_names() {
     assert!((right.roughness - 200.0 / 255.0).abs() < 1e-6, "{}", right.roughness);
 }
 
+/// `specularColorTexture` is sRGB and multiplies into `specularColorFactor`.
+#[test]
+fn the_specular_colour_texture_tints_the_specular_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let uri = png_data_uri(dir.path());
+    let mats = json!([{
+        "extensions": {"KHR_materials_specular": {
+            "specularColorFactor": [0.5, 1.0, 2.0],
+            "specularColorTexture": {"index": 0}
+        }}
+    }]);
+    let extra = [
+        ("images", json!([{"uri": uri}])),
+        ("samplers", json!([{"magFilter": 9728, "minFilter": 9728}])),
+        ("textures", json!([{"source": 0, "sampler": 0}])),
+        ("extensionsUsed", json!(["KHR_materials_specular"])),
+    ];
+    let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), mats, &extra);
+    let s = load_scene(&write_gltf(dir.path(), "t.gltf", doc, &buf)).unwrap();
+    let bvh = SceneBvh::build(&s);
+    let hit = bvh.intersect(&s, Vec3::new(0.8, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+    let tint = rtd::render::surface::Surface::new(&s, &hit).params.specular_color;
+    // The right texel is sRGB (10, 200, 30).
+    let texel = Vec3::new(10.0, 200.0, 30.0).map(|c| rtd::image::srgb_to_linear(c / 255.0));
+    let want = Vec3::new(0.5, 1.0, 2.0) * texel;
+    assert!(tint.abs_diff_eq(want, 1e-5), "{tint} vs {want}");
+}
+
 #[test]
 fn textures_are_linearised_transformed_and_cut_out() {
     let dir = tempfile::tempdir().unwrap();

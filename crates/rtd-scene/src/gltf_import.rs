@@ -385,13 +385,15 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
         Some(t) => (t.transmission_factor(), textures.info(t.transmission_texture(), false, scene)),
         None => (0.0, None),
     };
-    let (specular, specular_texture, specular_color) = match m.specular() {
+    let (specular, specular_texture, specular_color, specular_color_texture) = match m.specular() {
         Some(s) => (
             s.specular_factor(),
             textures.info(s.specular_texture(), false, scene),
             Vec3::from(s.specular_color_factor()),
+            // The colour texture is sRGB-encoded, as the base colour is.
+            textures.info(s.specular_color_texture(), true, scene),
         ),
-        None => (1.0, None, Vec3::ONE),
+        None => (1.0, None, Vec3::ONE, None),
     };
     Material {
         name: m.name().unwrap_or("unnamed").to_string(),
@@ -410,6 +412,7 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
         specular,
         specular_texture,
         specular_color,
+        specular_color_texture,
         alpha_mode: match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),

@@ -166,6 +166,9 @@ pub struct Material {
     pub specular_texture: Option<TextureRef>,
     /// `KHR_materials_specular` specularColorFactor (default white).
     pub specular_color: Vec3,
+    /// Specular colour texture (RGB, linearised from sRGB at load), multiplied into
+    /// [`Material::specular_color`].
+    pub specular_color_texture: Option<TextureRef>,
     /// Alpha handling.
     pub alpha_mode: AlphaMode,
     /// Whether back faces are rendered as front faces (and emit).
@@ -196,6 +199,7 @@ impl Default for Material {
             specular: 1.0,
             specular_texture: None,
             specular_color: Vec3::ONE,
+            specular_color_texture: None,
             alpha_mode: AlphaMode::Opaque,
             double_sided: false,
             unlit: false,
@@ -360,6 +364,10 @@ impl Material {
         if let Some(t) = &self.specular_texture {
             specular *= t.sample(textures, uv).w;
         }
+        let mut specular_color = self.specular_color;
+        if let Some(t) = &self.specular_color_texture {
+            specular_color *= t.sample(textures, uv).xyz();
+        }
         let tangent_normal = self.tangent_normal(textures, uv);
         let sat = |x: f32| {
             if x.is_finite() {
@@ -378,7 +386,7 @@ impl Material {
             transmission: sat(transmission),
             ior: if self.ior.is_finite() { self.ior.max(1.0) } else { 1.5 },
             specular: sat(specular),
-            specular_color: pos(self.specular_color),
+            specular_color: pos(specular_color),
             tangent_normal,
         }
     }
