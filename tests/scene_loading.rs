@@ -145,16 +145,23 @@ fn materials_and_extensions_follow_the_spec() {
             "KHR_materials_emissive_strength": {"emissiveStrength": 8.0},
             "KHR_materials_ior": {"ior": 1.33},
             "KHR_materials_transmission": {"transmissionFactor": 0.9},
-            "KHR_materials_specular": {"specularFactor": 0.4}
+            "KHR_materials_specular": {"specularFactor": 0.4},
+            "KHR_materials_volume": {
+                "thicknessFactor": 0.1, "attenuationDistance": 2.0, "attenuationColor": [0.5, 1.0, 0.25]
+            }
          },
          "alphaMode": "MASK", "alphaCutoff": 0.3, "doubleSided": true},
-        {"emissiveFactor": [1.0, 1.0, 1.0]}
+        {"emissiveFactor": [1.0, 1.0, 1.0]},
+        // Thin-walled (thickness 0, the default) and infinite-distance volumes absorb nothing.
+        {"extensions": {"KHR_materials_volume": {"attenuationDistance": 2.0, "attenuationColor": [0.5, 0.5, 0.5]}}},
+        {"extensions": {"KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationColor": [0.5, 0.5, 0.5]}}}
     ]);
     let used = json!([
         "KHR_materials_emissive_strength",
         "KHR_materials_ior",
         "KHR_materials_transmission",
-        "KHR_materials_specular"
+        "KHR_materials_specular",
+        "KHR_materials_volume"
     ]);
     let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), mats, &[("extensionsUsed", used)]);
     let s = load_scene(&write_gltf(dir.path(), "m.gltf", doc, &buf)).unwrap();
@@ -166,6 +173,13 @@ fn materials_and_extensions_follow_the_spec() {
     // Defaults: emissive strength 1, ior 1.5, transmission 0, specular 1.
     let d = &s.materials[1];
     assert_eq!((d.emissive, d.ior, d.transmission, d.specular), (Vec3::ONE, 1.5, 0.0, 1.0));
+    // White light turns attenuationColor after attenuationDistance: σ = −ln(colour)/distance.
+    let want = Vec3::new(0.5f32.ln(), 0.0, 0.25f32.ln()) / -2.0;
+    assert!(m.absorption.abs_diff_eq(want, 1e-6), "{}", m.absorption);
+    assert_eq!(
+        (d.absorption, s.materials[2].absorption, s.materials[3].absorption),
+        (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO)
+    );
 }
 
 /// A 2×1 RGBA PNG written through rtd's own LDR writer: left texel opaque, right transparent.

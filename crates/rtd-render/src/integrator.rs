@@ -4,6 +4,11 @@
 //! the BSDF is sampled to continue the path; both estimates of emitted light are combined by
 //! the power heuristic. Delta lights and delta lobes take no MIS. Russian roulette starts after
 //! three bounces with survival probability min(max β, 0.95).
+//!
+//! A path that refracts into a closed mesh whose material absorbs (`KHR_materials_volume`)
+//! carries that absorption coefficient σ_a until it refracts out through the same material,
+//! and each segment it travels inside is weighted by the Beer–Lambert transmittance
+//! exp(−σ_a·d). Volumes do not nest: entering a second absorbing mesh replaces the first.
 
 use glam::{Vec2, Vec3};
 use rtd_scene::{AlphaMode, Scene};
@@ -66,6 +71,8 @@ impl Integrator<'_> {
         let mut prev_p = origin;
         // The triangle the ray leaves (none for the camera ray).
         let mut leaving = NO_TRIANGLE;
+        // Absorption coefficient of the medium the path is travelling in (zero: none).
+        let mut medium = Vec3::ZERO;
         let mut depth = 0u32;
         loop {
             rays += 1;
@@ -86,6 +93,9 @@ impl Integrator<'_> {
                 }
                 break;
             };
+            if medium != Vec3::ZERO {
+                beta *= transmittance(medium, hit.t);
+            }
             let s = Surface::new(scene, &hit);
             let wo = -d;
             let material = &scene.materials[scene.triangles[hit.triangle as usize].material as usize];
@@ -142,17 +152,22 @@ impl Integrator<'_> {
                         if f != Vec3::ZERO {
                             rays += 1;
                             let from = s.spawn_origin(ls.wi);
-                            let blocked = match ls.point {
+                            let (blocked, absorbed) = match ls.point {
                                 // Stop the shadow ray just short of the light point.
                                 Some(q) => {
                                     let (dir, dist) = (q - from).normalize_and_length();
-                                    bvh.occluded_leaving(scene, from, dir, dist * (1.0 - 1e-4), s.triangle)
+                                    let blocked =
+                                        bvh.occluded_leaving(scene, from, dir, dist * (1.0 - 1e-4), s.triangle);
+                                    (blocked, transmittance(medium, dist))
                                 }
-                                None => bvh.occluded_leaving(scene, from, ls.wi, f32::INFINITY, s.triangle),
+                                // An unblocked ray to infinity leaves any (open) medium at once.
+                                None => {
+                                    (bvh.occluded_leaving(scene, from, ls.wi, f32::INFINITY, s.triangle), Vec3::ONE)
+                                }
                             };
                             if !blocked {
                                 let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
-                                radiance += beta * f * ls.li * (w / ls.pdf);
+                                radiance += beta * absorbed * f * ls.li * (w / ls.pdf);
                             }
                         }
                     }
@@ -169,6 +184,10 @@ impl Integrator<'_> {
             let wi = frame.to_world(bs.wi).normalize_or_zero();
             if wi == Vec3::ZERO || !same_side_agrees(wo, wi, s.ng, wo_l, bs.wi) {
                 break;
+            }
+            // Refracting through an absorbing material enters or leaves its medium.
+            if material.absorption != Vec3::ZERO && wo.dot(s.ng) * wi.dot(s.ng) < 0.0 {
+                medium = if wi.dot(s.ng) < 0.0 { material.absorption } else { Vec3::ZERO };
             }
             beta *= bs.weight;
             specular = bs.delta;
@@ -190,6 +209,16 @@ impl Integrator<'_> {
             }
         }
         PathResult { radiance, aov, rays }
+    }
+}
+
+/// Beer–Lambert transmittance exp(−σ_a·d) over distance `d` in a medium of absorption `sigma`.
+#[inline]
+fn transmittance(sigma: Vec3, d: f32) -> Vec3 {
+    if sigma == Vec3::ZERO {
+        Vec3::ONE
+    } else {
+        (-sigma * d).exp()
     }
 }
 

@@ -20,6 +20,7 @@ pub const SUPPORTED_GLTF_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
     "KHR_texture_transform",
     "KHR_materials_unlit",
+    "KHR_materials_volume",
 ];
 
 /// Loads a `.gltf` (external or embedded buffers) or `.glb` file into a flat [`Scene`].
@@ -409,6 +410,9 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
         transmission,
         transmission_texture,
         ior: m.ior().unwrap_or(1.5),
+        absorption: m.volume().map_or(Vec3::ZERO, |v| {
+            volume_absorption(v.thickness_factor(), v.attenuation_color(), v.attenuation_distance())
+        }),
         specular,
         specular_texture,
         specular_color,
@@ -421,6 +425,17 @@ fn convert_material(m: &gltf::Material, textures: &mut TextureCache, scene: &mut
         double_sided: m.double_sided(),
         unlit: m.unlit(),
     }
+}
+
+/// The absorption coefficient σ_a per world unit of a `KHR_materials_volume`: white light
+/// turns `color` after `distance` (Beer–Lambert, σ_a = −ln(color)/distance). A thin-walled
+/// volume (thickness 0), an infinite distance, or a white colour absorbs nothing.
+fn volume_absorption(thickness: f32, color: [f32; 3], distance: f32) -> Vec3 {
+    if !(thickness > 0.0 && distance > 0.0 && distance.is_finite()) {
+        return Vec3::ZERO;
+    }
+    // A colour of 0 would be an infinite coefficient: clamp to a tiny transmittance instead.
+    Vec3::from(color).map(|c| if c.is_finite() { -c.clamp(1e-6, 1.0).ln() / distance } else { 0.0 })
 }
 
 fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light {

@@ -160,6 +160,10 @@ pub struct Material {
     pub transmission_texture: Option<TextureRef>,
     /// Index of refraction (`KHR_materials_ior`, default 1.5).
     pub ior: f32,
+    /// Absorption coefficient σ_a per world unit inside the closed mesh this material bounds
+    /// (`KHR_materials_volume`: −ln(attenuationColor)/attenuationDistance); zero for none.
+    /// Transmitted light is attenuated by exp(−σ_a·d) over the distance d it travels inside.
+    pub absorption: Vec3,
     /// `KHR_materials_specular` specularFactor (default 1).
     pub specular: f32,
     /// Specular texture (A channel).
@@ -196,6 +200,7 @@ impl Default for Material {
             transmission: 0.0,
             transmission_texture: None,
             ior: 1.5,
+            absorption: Vec3::ZERO,
             specular: 1.0,
             specular_texture: None,
             specular_color: Vec3::ONE,
