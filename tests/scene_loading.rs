@@ -285,6 +285,49 @@ fn a_texture_reads_the_uv_set_its_tex_coord_names() {
     assert!((right.roughness - 200.0 / 255.0).abs() < 1e-6, "{}", right.roughness);
 }
 
+/// `KHR_materials_clearcoat` and `KHR_materials_sheen` reach the surface: factors × textures
+/// (sheen colour sRGB, roughnesses from G and A), and a missing texture index is a warning.
+#[test]
+fn clearcoat_and_sheen_reach_the_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let uri = png_data_uri(dir.path());
+    let mats = json!([{
+        "extensions": {
+            "KHR_materials_clearcoat": {
+                "clearcoatFactor": 0.5, "clearcoatTexture": {"index": 0},
+                "clearcoatRoughnessFactor": 0.8, "clearcoatRoughnessTexture": {"index": 0},
+                "clearcoatNormalTexture": {"index": 0}
+            },
+            "KHR_materials_sheen": {
+                "sheenColorFactor": [1.0, 0.5, 0.25], "sheenColorTexture": {"index": 0},
+                "sheenRoughnessFactor": 0.6, "sheenRoughnessTexture": {"index": 7}
+            }
+        }
+    }]);
+    let extra = [
+        ("images", json!([{"uri": uri}])),
+        ("samplers", json!([{"magFilter": 9728, "minFilter": 9728}])),
+        ("textures", json!([{"source": 0, "sampler": 0}])),
+        ("extensionsUsed", json!(["KHR_materials_clearcoat", "KHR_materials_sheen"])),
+    ];
+    let (doc, buf) = quad_gltf(json!([{"mesh": 0}]), mats, &extra);
+    let s = load_scene(&write_gltf(dir.path(), "t.gltf", doc, &buf)).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("clearcoatNormalTexture")), "{:?}", s.warnings);
+    assert!(s.warnings.iter().any(|w| w.contains("texture 7")), "{:?}", s.warnings);
+    assert!(s.warnings.iter().all(|w| !w.contains("unsupported")), "{:?}", s.warnings);
+    let bvh = SceneBvh::build(&s);
+    let hit = bvh.intersect(&s, Vec3::new(0.2, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+    let l = rtd::render::surface::Surface::new(&s, &hit).params.layers;
+    // The left texel is sRGB (128, 64, 255), alpha 255.
+    let raw = Vec3::new(128.0, 64.0, 255.0) / 255.0;
+    let srgb = raw.map(rtd::image::srgb_to_linear);
+    assert!((l.clearcoat - 0.5 * raw.x).abs() < 1e-6, "{}", l.clearcoat);
+    assert!((l.clearcoat_roughness - 0.8 * raw.y).abs() < 1e-6, "{}", l.clearcoat_roughness);
+    assert!(l.sheen_color.abs_diff_eq(Vec3::new(1.0, 0.5, 0.25) * srgb, 1e-5), "{}", l.sheen_color);
+    // The sheen roughness texture names no texture: the factor alone.
+    assert_eq!(l.sheen_roughness, 0.6);
+}
+
 /// `specularColorTexture` is sRGB and multiplies into `specularColorFactor`.
 #[test]
 fn the_specular_colour_texture_tints_the_specular_colour() {

@@ -137,6 +137,7 @@ impl Integrator<'_> {
                 specular: s.params.specular,
                 specular_color: s.params.specular_color,
                 opacity: if material.alpha_mode == AlphaMode::Blend { s.params.alpha } else { 1.0 },
+                layers: s.params.layers,
             };
             let bsdf = Bsdf::new(params, wo_l);
 

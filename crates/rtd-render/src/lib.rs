@@ -17,6 +17,7 @@ pub mod microfacet;
 mod render;
 pub mod sampler;
 pub mod sampling;
+pub mod sheen;
 pub mod surface;
 
 pub use bsdf::{Bsdf, BsdfParams, BsdfSample};

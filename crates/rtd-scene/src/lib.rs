@@ -15,11 +15,14 @@ mod environment;
 mod error;
 mod gltf_accessors;
 mod gltf_import;
+mod gltf_material;
+mod layers;
 mod light;
 mod material;
 mod obj_import;
 mod scene;
 mod texture;
+mod texture_ref;
 
 pub use aabb::Aabb;
 pub use camera::{Camera, Projection};
@@ -27,11 +30,13 @@ pub use camera_choice::CameraError;
 pub use environment::{EnvMap, Environment, EnvironmentChoice};
 pub use error::{AccessorProblem, SceneError};
 pub use gltf_import::{load_gltf, load_gltf_scene, SUPPORTED_GLTF_EXTENSIONS};
+pub use layers::{Clearcoat, LayerParams, Sheen};
 pub use light::{Light, LUMENS_PER_WATT};
-pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams, TexCoords, TextureRef, UvTransform};
+pub use material::{AlphaMode, Material, MaterialFootprint, SurfaceParams};
 pub use obj_import::load_obj;
 pub use scene::{Scene, Triangle, TriangleExtras};
 pub use texture::{FootprintFilter, Texture, Wrap};
+pub use texture_ref::{TexCoords, TextureRef, UvTransform};
 
 use std::path::Path;
 
