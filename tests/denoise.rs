@@ -175,6 +175,48 @@ fn nan_and_inf_inputs_give_finite_output() {
     assert!(out.is_finite());
 }
 
+/// A network that reads the variance planes, with random weights (until a shipped model reads
+/// them, this is what exercises them), over a rendered box and the film's variance.
+#[test]
+fn variance_planes_are_read_and_hold_to_burn_tiling_and_nan() {
+    use rtd::denoise::DenoiserConfig;
+    let config = DenoiserConfig::new(vec![8, 12, 16]).with_demodulate(Some(true));
+    assert_eq!(config.input_channels, rtd::denoise::INPUT_CHANNELS);
+    let model = || Denoiser::untrained(config.clone(), 11);
+    let scene = rtd::render::RenderScene::new(common::cornell());
+    let cam = scene.scene.cameras[0].clone();
+    let (w, h) = (90, 70);
+    let tracer = rtd::render::PathTracer::new(&scene, cam.clone(), rtd::render::RenderSettings::new(w, h)).unwrap();
+    let mut film = tracer.film();
+    tracer.render(&mut film, 8).unwrap();
+    let g =
+        rtd::guide::GuidePass::render(&scene.scene, &scene.bvh, &cam, &rtd::guide::GuideSettings::new(w, h)).unwrap();
+    let (color, mut variance) = (film.beauty(), film.variance().unwrap());
+    let input = full_input(&color, &g).variance(Some(&variance));
+    let whole = model().denoise(&input).unwrap();
+    let tiled = model().tile(24).denoise(&input).unwrap();
+    let burn = model().with_burn(true).denoise(&input).unwrap();
+    let rel = |a: &HdrImage, b: &HdrImage| {
+        a.pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(x, y)| ((*x - *y).abs() / (x.abs().max(y.abs()) + Vec3::splat(1e-3))).max_element())
+            .fold(0.0, f32::max)
+    };
+    assert!(rel(&whole, &tiled) < 1e-4, "tiled vs untiled: {}", rel(&whole, &tiled));
+    assert!(rel(&whole, &burn) < 1e-4, "fast vs burn: {}", rel(&whole, &burn));
+    let without = model().denoise(&full_input(&color, &g)).unwrap();
+    assert!(rel(&whole, &without) > 1e-3, "the variance planes changed nothing");
+    variance.set(5, 5, Vec3::new(f32::NAN, f32::INFINITY, -1.0));
+    variance.set(6, 5, Vec3::splat(1e30));
+    let odd = model().denoise(&full_input(&color, &g).variance(Some(&variance))).unwrap();
+    assert!(odd.is_finite());
+    // A variance image of another size is named.
+    let small = HdrImage::new(4, 4);
+    let e = model().denoise(&full_input(&color, &g).variance(Some(&small))).unwrap_err().to_string();
+    assert!(e.contains("variance") && e.contains("4x4"), "{e}");
+}
+
 #[test]
 fn one_pixel_and_odd_sizes_work() {
     for (w, h) in [(1u32, 1u32), (3, 17), (17, 5)] {

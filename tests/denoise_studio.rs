@@ -244,7 +244,7 @@ fn bad_studio_inputs_fail_in_one_line_without_output() {
     image::ImageBuffer::<image::Rgb<u16>, Vec<u16>>::new(21, 16).save(&wide).unwrap();
     assert_fails(&denoise(&noisy, &["--albedo", s(&wide)]), "wide16.png: image is 21x16 but the colour image is 20x16");
     // A named colour layer that is not there.
-    assert_fails(&denoise(&noisy, &["--layer-color", "Combined"]), "noisy20x16.exr: no colour layer (looked for the layer named \"Combined\"; layers found: (bare channels), albedo, ao, depth, guide, normal)");
+    assert_fails(&denoise(&noisy, &["--layer-color", "Combined"]), "noisy20x16.exr: no colour layer (looked for the layer named \"Combined\"; layers found: (bare channels), albedo, ao, depth, guide, normal, variance)");
     assert!(!out.exists());
     assert!(std::fs::read_dir(d).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".tmp")));
 }

@@ -5,9 +5,12 @@
 //! allocator below, which aborts the run). Found crashes are kept in
 //! `tests/fuzz-regressions/TARGET/` and replayed first, every run.
 //!
-//! `RTD_FUZZ_SECS` sets the seconds per target (default 8, as CI runs it); `RTD_FUZZ_SEED` the
-//! generator's seed; `RTD_FUZZ_TARGETS` a comma-separated subset. Each target prints its
-//! executions; RELIABILITY.md records the long campaigns.
+//! `RTD_FUZZ_SECS` sets the seconds per target (default 8, as CI runs it); `RTD_FUZZ_CPU_SECS`
+//! instead bounds each target by the processor time the process spends on it, so a campaign
+//! run at low priority beside other work still fuzzes each target for the stated time;
+//! `RTD_FUZZ_SEED` the generator's seed; `RTD_FUZZ_TARGETS` a comma-separated subset. Each
+//! target prints its executions, wall and processor seconds; RELIABILITY.md records the long
+//! campaigns.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::{Path, PathBuf};
@@ -275,6 +278,28 @@ struct Campaign {
     runs: u64,
     crashes: Vec<(PathBuf, String)>,
     contained: u64,
+    /// Wall-clock seconds spent.
+    wall: f64,
+    /// Processor seconds (user + system) the process spent.
+    cpu: f64,
+}
+
+/// How long a target runs: wall-clock seconds, or processor seconds of this process.
+#[derive(Clone, Copy)]
+enum Budget {
+    Wall(f64),
+    Cpu(f64),
+}
+
+/// User + system processor seconds of this process so far, from `/proc/self/stat` (in the
+/// kernel's USER_HZ ticks, 100 a second on Linux).
+fn process_cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // Fields after the command name, which is in parentheses and may hold spaces: utime and
+    // stime are the 14th and 15th fields of the line, the 12th and 13th after the name.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let ticks: Vec<f64> = rest.split_whitespace().skip(11).take(2).filter_map(|t| t.parse().ok()).collect();
+    ticks.iter().sum::<f64>() / 100.0
 }
 
 /// Aborts the run when one input has run past [`TIME_LIMIT`] (a hang would otherwise stall CI);
@@ -292,7 +317,7 @@ fn watchdog(busy_since: &'static AtomicUsize, origin: Instant, input: PathBuf) {
     });
 }
 
-fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
+fn fuzz(target: &Target, budget: Budget, seed: u64) -> Campaign {
     // A fixed folder, so that the input in flight is still there if the run aborts.
     let work = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-work").join(target.name);
     std::fs::create_dir_all(&work).unwrap();
@@ -302,15 +327,24 @@ fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
     let path = work.join(target.file);
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-crashes").join(target.name);
     let mut entropy = Entropy((seed ^ (target.name.len() as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)) | 1);
-    let mut campaign = Campaign { runs: 0, crashes: vec![], contained: 0 };
+    let mut campaign = Campaign { runs: 0, crashes: vec![], contained: 0, wall: 0.0, cpu: 0.0 };
     let contained_before = rtd::image::contained_panics();
     let busy: &'static AtomicUsize = Box::leak(Box::new(AtomicUsize::new(0)));
     let origin = Instant::now();
     watchdog(busy, origin, path.clone());
-    let start = Instant::now();
+    let (start, cpu_start) = (Instant::now(), process_cpu_seconds());
+    let spent = |runs: u64| match budget {
+        Budget::Wall(_) => start.elapsed().as_secs_f64(),
+        // Reading /proc costs a few microseconds: once every 64 inputs is enough.
+        Budget::Cpu(_) if runs.is_multiple_of(64) => process_cpu_seconds() - cpu_start,
+        Budget::Cpu(_) => 0.0,
+    };
+    let limit = match budget {
+        Budget::Wall(s) | Budget::Cpu(s) => s,
+    };
     // The seeds themselves first (and so every kept regression), then mutations.
     let mut queue: Vec<Vec<u8>> = seeds.clone();
-    while !queue.is_empty() || start.elapsed().as_secs_f64() < secs {
+    while !queue.is_empty() || spent(campaign.runs) < limit {
         let input = match queue.pop() {
             Some(i) => i,
             None => {
@@ -347,12 +381,17 @@ fn fuzz(target: &Target, secs: f64, seed: u64) -> Campaign {
         }
     }
     campaign.contained = rtd::image::contained_panics() - contained_before;
+    (campaign.wall, campaign.cpu) = (start.elapsed().as_secs_f64(), process_cpu_seconds() - cpu_start);
     campaign
 }
 
 #[test]
 fn loaders_survive_mutated_input() {
-    let secs: f64 = std::env::var("RTD_FUZZ_SECS").ok().and_then(|s| s.parse().ok()).unwrap_or(8.0);
+    let env = |name: &str| std::env::var(name).ok().and_then(|s| s.parse::<f64>().ok());
+    let budget = match (env("RTD_FUZZ_CPU_SECS"), env("RTD_FUZZ_SECS")) {
+        (Some(cpu), _) => Budget::Cpu(cpu),
+        (None, wall) => Budget::Wall(wall.unwrap_or(8.0)),
+    };
     let seed: u64 = std::env::var("RTD_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
     let only = std::env::var("RTD_FUZZ_TARGETS").ok();
     let mut failures = Vec::new();
@@ -360,11 +399,13 @@ fn loaders_survive_mutated_input() {
         if only.as_ref().is_some_and(|o| !o.split(',').any(|t| t == target.name)) {
             continue;
         }
-        let c = fuzz(&target, secs, seed);
+        let c = fuzz(&target, budget, seed);
         eprintln!(
-            "fuzz {:>6}: {:>8} runs in {secs} s, {} crashes, {} dependency panics contained",
+            "fuzz {:>6}: {:>8} runs in {:.0} s ({:.0} s of processor time), {} crashes, {} dependency panics contained",
             target.name,
             c.runs,
+            c.wall,
+            c.cpu,
             c.crashes.len(),
             c.contained
         );

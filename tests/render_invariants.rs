@@ -73,6 +73,44 @@ fn sample_ranges_merge_to_the_whole_render() {
     assert!(whole.clone().merge(&parts[1]).is_err());
 }
 
+/// The film's variance is each pixel's sample variance over N: rendered as 12 one-sample
+/// ranges, the same pixels' samples give it by the textbook formula. (It is not the error
+/// of the mean: Owen-scrambled Sobol samples are stratified, and on this box at 16 spp the
+/// squared difference of two independent renders is about a fifth of what the i.i.d. formula
+/// predicts. The denoiser learns that relation from rtd's own renders.)
+#[test]
+fn reported_variance_is_the_sample_variance_of_the_pixel_samples() {
+    let scene = cornell();
+    let cam = cornell_camera(&scene);
+    let prepared = RenderScene::new(scene);
+    let (w, h, n) = (20u32, 16u32, 12u32);
+    let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(w, h).seed(4)).unwrap();
+    let mut whole = tracer.film();
+    tracer.render(&mut whole, n).unwrap();
+    let samples: Vec<Vec<Vec3>> = (0..n)
+        .map(|k| {
+            let mut one = Film::starting_at(w, h, k);
+            tracer.render(&mut one, 1).unwrap();
+            one.beauty().pixels
+        })
+        .collect();
+    let reported = whole.variance().unwrap();
+    let mut lit = 0;
+    for i in 0..(w * h) as usize {
+        let mean = samples.iter().map(|s| s[i].as_dvec3()).sum::<glam::DVec3>() / n as f64;
+        let spread = samples.iter().map(|s| (s[i].as_dvec3() - mean).powf(2.0)).sum::<glam::DVec3>();
+        let expected = spread / ((n - 1) as f64 * n as f64);
+        let got = reported.pixels[i].as_dvec3();
+        let tolerance = 1e-5 * expected.max_element().max(1e-3);
+        assert!((got - expected).abs().max_element() <= tolerance, "pixel {i}: {got} against {expected}");
+        lit += (expected.max_element() > 1e-4) as usize;
+    }
+    assert!(lit > 100, "only {lit} pixels vary: the check would prove little");
+    let mut one = tracer.film();
+    tracer.render(&mut one, 1).unwrap();
+    assert!(one.variance().is_none() && one.layers().image(rtd::image::Layer::Variance).is_none());
+}
+
 /// Root-mean-square difference of two images.
 fn rmse(a: &rtd::image::HdrImage, b: &rtd::image::HdrImage) -> f64 {
     let s: f64 = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x - *y).length_squared() as f64).sum();

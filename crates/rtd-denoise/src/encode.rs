@@ -25,12 +25,15 @@ pub struct Encoding {
     /// The value auto-exposure maps the log-average luminance to before the log transfer
     /// ([`DEFAULT_KEY`] unless the model says otherwise).
     pub key: f32,
+    /// How many planes of the layout the model reads: [`INPUT_CHANNELS`], or
+    /// [`crate::planes::LEGACY_INPUT_CHANNELS`] for a model made before the variance planes.
+    pub channels: usize,
 }
 
 impl Default for Encoding {
-    /// No demodulation; the default key.
+    /// No demodulation; the default key; every plane.
     fn default() -> Self {
-        Encoding { demodulate: false, key: DEFAULT_KEY }
+        Encoding { demodulate: false, key: DEFAULT_KEY, channels: INPUT_CHANNELS }
     }
 }
 
@@ -41,8 +44,8 @@ impl Encoding {
     }
 }
 
-/// What the denoiser is given. Colour and a guide are required; albedo + normal and AO + depth
-/// are optional pairs (rtd's own renders have all of them).
+/// What the denoiser is given. Colour and a guide are required; albedo + normal, AO + depth and
+/// the colour's variance are optional (rtd's own renders have all of them).
 #[derive(Clone, Copy)]
 pub struct DenoiseInput<'a> {
     /// The noisy HDR colour.
@@ -53,12 +56,15 @@ pub struct DenoiseInput<'a> {
     pub albedo_normal: Option<(&'a HdrImage, &'a HdrImage)>,
     /// Ambient occlusion and camera distance, one value per pixel.
     pub ao_depth: Option<(&'a [f32], &'a [f32])>,
+    /// The variance of each pixel's colour estimate, per channel (the film's
+    /// [`Layer::Variance`](rtd_image::Layer::Variance)).
+    pub variance: Option<&'a HdrImage>,
 }
 
 impl<'a> DenoiseInput<'a> {
     /// Colour plus the guide RGB only (renders from other software).
     pub fn new(color: &'a HdrImage, guide: &'a HdrImage) -> Self {
-        DenoiseInput { color, guide, albedo_normal: None, ao_depth: None }
+        DenoiseInput { color, guide, albedo_normal: None, ao_depth: None, variance: None }
     }
     /// Adds albedo and normal.
     pub fn albedo_normal(mut self, albedo: &'a HdrImage, normal: &'a HdrImage) -> Self {
@@ -70,12 +76,20 @@ impl<'a> DenoiseInput<'a> {
         self.ao_depth = Some((ao, depth));
         self
     }
+    /// Adds the colour's per-pixel variance (None leaves it out).
+    pub fn variance(mut self, variance: Option<&'a HdrImage>) -> Self {
+        self.variance = variance;
+        self
+    }
 
     /// Image width and height, after checking every layer has them.
     pub fn size(&self) -> Result<(u32, u32), DenoiseError> {
         let (w, h) = (self.color.width, self.color.height);
         let n = (w * h) as usize;
         let mut sizes = vec![("guide", self.guide.width, self.guide.height)];
+        if let Some(v) = self.variance {
+            sizes.push(("variance", v.width, v.height));
+        }
         if let Some((a, nrm)) = self.albedo_normal {
             sizes.push(("albedo", a.width, a.height));
             sizes.push(("normal", nrm.width, nrm.height));
@@ -182,9 +196,27 @@ pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&H
     });
 }
 
-/// The network's input planes, [`INPUT_CHANNELS`] × H × W in channel-major order. With
-/// `encoding.demodulate` and an albedo layer, the colour planes hold colour ÷ (albedo +
-/// [`DEMOD_EPS`]).
+/// Writes channel `k` of the colour's standard deviation, √variance, divided by `albedo` +
+/// [`DEMOD_EPS`] if given (as the colour is) and through the colour's transfer, into `plane`.
+pub fn encode_deviation_plane(
+    plane: &mut [f32],
+    variance: &HdrImage,
+    albedo: Option<&HdrImage>,
+    k: usize,
+    exposure: f32,
+) {
+    plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
+        let i0 = c * PIXEL_CHUNK;
+        for (i, (v, p)) in chunk.iter_mut().zip(&variance.pixels[i0..]).enumerate() {
+            let deviation = clean(p[k], 0.0, MAX_INPUT * MAX_INPUT).sqrt();
+            *v = transfer(deviation / demod_factor(albedo, i0 + i, k), exposure);
+        }
+    });
+}
+
+/// The network's input planes, `encoding.channels` × H × W in channel-major order (the first
+/// planes of the [`Plane`] layout). With `encoding.demodulate` and an albedo layer, the colour
+/// and deviation planes hold colour (deviation) ÷ (albedo + [`DEMOD_EPS`]).
 pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) -> Result<Vec<f32>, DenoiseError> {
     let (w, h) = input.size()?;
     let n = (w * h) as usize;
@@ -197,7 +229,7 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) ->
         }
     });
     let demod = demod_albedo(input, encoding.demodulate);
-    let mut planes = vec![0.0f32; INPUT_CHANNELS * n];
+    let mut planes = vec![0.0f32; encoding.channels.min(INPUT_CHANNELS) * n];
     // One plane per task; absent inputs leave their planes (and flags) at 0.
     planes.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
         let guide = &input.guide.pixels;
@@ -216,6 +248,12 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) ->
                 plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0))
             }
             (Plane::HasAlbedoNormal, Some(_), _) | (Plane::HasAoDepth, _, Some(_)) => plane.fill(1.0),
+            (Plane::Deviation(k), _, _) => {
+                if let Some(v) = input.variance {
+                    encode_deviation_plane(plane, v, demod, k, exposure)
+                }
+            }
+            (Plane::HasVariance, _, _) if input.variance.is_some() => plane.fill(1.0),
             _ => {}
         }
     });

@@ -13,6 +13,7 @@ use rtd_image::HdrImage;
 use crate::encode::{decode_color, demod_albedo, demod_factor, encode_planes, DenoiseInput};
 use crate::fast::{FastNet, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
+use crate::planes::{is_supported_width, LEGACY_INPUT_CHANNELS};
 use crate::{DenoiseError, INPUT_CHANNELS};
 use rtd_image::MAX_DIMENSION;
 
@@ -99,10 +100,13 @@ impl Denoiser {
     pub fn from_bytes(config_json: &str, weights: Vec<u8>, name: &str) -> Result<Self, DenoiseError> {
         let config = DenoiserConfig::from_json(config_json)
             .map_err(|e| DenoiseError::model(name, format!("bad model config: {e}")))?;
-        if config.input_channels != INPUT_CHANNELS {
+        if !is_supported_width(config.input_channels) {
             return Err(DenoiseError::model(
                 name,
-                format!("model expects {} input channels, this rtd provides {INPUT_CHANNELS}", config.input_channels),
+                format!(
+                    "model expects {} input channels, this rtd provides {INPUT_CHANNELS} (or {LEGACY_INPUT_CHANNELS} for older models)",
+                    config.input_channels
+                ),
             ));
         }
         if config.channels.is_empty()
@@ -138,6 +142,15 @@ impl Denoiser {
     /// The model shipped in `models/` and compiled into the binary.
     pub fn builtin() -> Result<Self, DenoiseError> {
         Self::from_bytes(BUILTIN_CONFIG, BUILTIN_WEIGHTS.to_vec(), "builtin:rtd-denoiser")
+    }
+
+    /// A denoiser of `config`'s shape with untrained weights drawn from `seed`: what tests of
+    /// the inference machinery and speed measurements of other shapes run.
+    pub fn untrained(config: DenoiserConfig, seed: u64) -> Self {
+        let device = Device::flex();
+        device.seed(seed);
+        let net = config.init(&device);
+        Self::from_net(net, config, device, &format!("untrained:{seed}"))
     }
 
     /// Wraps an already-built network (training's validation uses this).
@@ -192,6 +205,12 @@ impl Denoiser {
     /// The model's config.
     pub fn config(&self) -> &DenoiserConfig {
         &self.config
+    }
+
+    /// Whether the model reads the colour's per-pixel variance (models made before the variance
+    /// planes do not).
+    pub fn reads_variance(&self) -> bool {
+        self.config.input_channels > LEGACY_INPUT_CHANNELS
     }
 
     /// Tile overlap: the receptive radius rounded up to the alignment.
@@ -308,7 +327,8 @@ impl Denoiser {
             }
         });
         // The window's input planes (C × th × tw), which both paths read.
-        let mut x = scratch.map(tw, th, INPUT_CHANNELS);
+        let c = self.config.input_channels;
+        let mut x = scratch.map(tw, th, c);
         x.data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
             let (plane, y) = (&planes[row / th * w * h..][..w * h], row % th);
             for (d, i) in dst.iter_mut().zip(&index[y * tw..][..tw]) {
@@ -316,7 +336,7 @@ impl Denoiser {
             }
         });
         if self.use_burn {
-            let input = Tensor::<4>::from_data(TensorData::new(x.data, [1, INPUT_CHANNELS, th, tw]), &self.device);
+            let input = Tensor::<4>::from_data(TensorData::new(x.data, [1, c, th, tw]), &self.device);
             let y = self.net.forward(input); // [1, 3, th, tw]
             return y.into_data().try_into_vec::<f32>().expect("the network outputs f32");
         }

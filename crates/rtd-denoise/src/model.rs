@@ -40,8 +40,10 @@ pub struct DenoiserConfig {
     /// Length k of the 1×k then k×1 branch.
     #[config(default = 5)]
     pub prong: usize,
-    /// Input channels (always [`INPUT_CHANNELS`] for this version; checked on load).
-    #[config(default = 16)]
+    /// Input planes read, the first this many of the [`crate::planes::Plane`] layout:
+    /// [`crate::INPUT_CHANNELS`], or [`crate::planes::LEGACY_INPUT_CHANNELS`] for models made
+    /// before the variance planes (checked on load).
+    #[config(default = 20)]
     pub input_channels: usize,
     /// Whether noisy colour and the network's output are divided by the albedo (plus
     /// [`crate::encode::DEMOD_EPS`]) when an albedo layer is given, so the network denoises
@@ -73,7 +75,7 @@ impl DenoiserConfig {
 
     /// How inputs are encoded for this network (every network reads the depth layer).
     pub fn encoding(&self) -> Encoding {
-        Encoding { demodulate: self.demodulates(), key: self.exposure_key() }
+        Encoding { demodulate: self.demodulates(), key: self.exposure_key(), channels: self.input_channels }
     }
 
     /// Parses a model config, the `.json` saved beside the weights. Unknown fields are ignored.
@@ -282,7 +284,21 @@ fn upsample2(x: Tensor<4>) -> Tensor<4> {
 }
 
 impl DenoiserNet {
-    /// `x`: [N, 16, H, W] encoded inputs, H and W multiples of the config's alignment
+    /// The same network reading `channels` input planes instead of its stem's present count
+    /// (more, not fewer): the stem gets zero weights for the added planes, so the network
+    /// computes the same function until training teaches it to use them. This is how a model
+    /// made before the variance planes seeds one that reads them.
+    pub fn widen_input(mut self, channels: usize) -> Self {
+        let weight = self.stem.weight.val(); // [c0, cin, 3, 3]
+        let [c0, cin, kh, kw] = weight.dims();
+        if channels > cin {
+            let zeros = Tensor::<4>::zeros([c0, channels - cin, kh, kw], &weight.device());
+            self.stem.weight = Param::from_tensor(Tensor::cat(vec![weight, zeros], 1));
+        }
+        self.map(&mut NumberedParams(0))
+    }
+
+    /// `x`: [N, C, H, W] encoded inputs (C the config's input planes), H and W multiples of the config's alignment
     /// → [N, 3, H, W] encoded colour.
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let mut skips = Vec::with_capacity(self.encoders.len());
@@ -328,12 +344,31 @@ mod tests {
             assert_eq!(net.forward(x).dims(), [2, 3, h, w]);
         }
         // The shipped U-Net's figures, as models/README.md and the tile margin have them.
-        let u = DenoiserConfig::unet();
+        let u = DenoiserConfig::unet().with_input_channels(crate::planes::LEGACY_INPUT_CHANNELS);
         assert_eq!((u.alignment(), u.receptive_radius()), (4, 48));
         assert_eq!(u.macs_per_pixel(), 29768.0);
+        // The variance planes add four stem inputs: 4 × 9 × 24 multiply-adds per pixel.
+        assert_eq!(DenoiserConfig::unet().macs_per_pixel(), 29768.0 + 864.0);
         // Each bottleneck block adds cost and reach.
         let deeper = DenoiserConfig::unet().with_bottleneck_blocks(3);
         assert!(deeper.macs_per_pixel() > u.macs_per_pixel() && deeper.receptive_radius() > u.receptive_radius());
+    }
+
+    #[test]
+    fn a_widened_network_ignores_its_new_planes_until_trained() {
+        let device = Device::flex();
+        device.seed(7);
+        let narrow = DenoiserConfig::new(vec![8, 12]).with_input_channels(crate::planes::LEGACY_INPUT_CHANNELS);
+        let net = narrow.init(&device);
+        let (h, w, c) = (8, 12, INPUT_CHANNELS);
+        let values: Vec<f32> = (0..c * h * w).map(|i| (i * 37 % 101) as f32 / 50.0 - 1.0).collect();
+        let full = Tensor::<4>::from_data(TensorData::new(values, [1, c, h, w]), &device);
+        let first = full.clone().narrow(1, 0, crate::planes::LEGACY_INPUT_CHANNELS);
+        let before: Vec<f32> = net.forward(first).into_data().try_to_vec().unwrap();
+        let wide = net.widen_input(c);
+        assert_eq!(wide.stem.weight.val().dims()[1], c);
+        let after: Vec<f32> = wide.forward(full).into_data().try_to_vec().unwrap();
+        assert_eq!(before, after);
     }
 
     #[test]
@@ -342,7 +377,7 @@ mod tests {
         let shipped = DenoiserConfig::from_json(include_str!("../../../models/rtd-denoiser.json")).unwrap();
         assert_eq!((&shipped.channels, shipped.bottleneck_blocks, shipped.prong), (&vec![24, 48, 64], 2, 5));
         assert!(shipped.demodulates() && (shipped.exposure_key() - 2.88).abs() < 1e-6);
-        assert_eq!(shipped.encoding(), Encoding { demodulate: true, key: shipped.exposure_key() });
+        assert_eq!(shipped.encoding(), Encoding { demodulate: true, key: shipped.exposure_key(), channels: 16 });
         // A small config's JSON with one field set as older rtd versions wrote it.
         let with = |field: &str, v: serde_json::Value| {
             let mut json = serde_json::to_value(DenoiserConfig::new(vec![8, 8])).unwrap();

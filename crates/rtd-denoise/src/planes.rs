@@ -2,8 +2,18 @@
 //! encoder, the training batches and the guide-dropping augmentation all read it from here.
 
 /// Input planes: noisy colour (3), guide RGB = albedo × AO (3), albedo (3), normal (3), AO (1),
-/// depth (1), and two 0/1 flags saying whether albedo + normal and AO + depth are present.
-pub const INPUT_CHANNELS: usize = 16;
+/// depth (1), two 0/1 flags saying whether albedo + normal and AO + depth are present, then the
+/// standard deviation of the colour's estimate (3) and a flag saying whether it is present.
+pub const INPUT_CHANNELS: usize = 20;
+
+/// The planes models made before the variance planes read: the first 16 of the layout, which
+/// are unchanged. Such a model is given those and nothing else.
+pub const LEGACY_INPUT_CHANNELS: usize = 16;
+
+/// The input widths a model may have: [`LEGACY_INPUT_CHANNELS`] or [`INPUT_CHANNELS`].
+pub fn is_supported_width(channels: usize) -> bool {
+    channels == LEGACY_INPUT_CHANNELS || channels == INPUT_CHANNELS
+}
 
 /// What one input plane holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,15 +34,23 @@ pub enum Plane {
     HasAlbedoNormal,
     /// 1 where the AO + depth pair is given, else 0.
     HasAoDepth,
+    /// Encoded standard deviation of the noisy colour's estimate (the renderer's per-pixel
+    /// variance), channel 0–2.
+    Deviation(usize),
+    /// 1 where the variance is given, else 0.
+    HasVariance,
 }
 
-/// The two optional input pairs, each of which a caller may leave out.
+/// The optional inputs, each of which a caller may leave out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum OptionalPair {
+pub enum OptionalInput {
     /// Albedo and normal.
     AlbedoNormal,
     /// Ambient occlusion and depth.
     AoDepth,
+    /// The per-pixel variance of the colour (rtd's own renders have it; other software's files
+    /// do not).
+    Variance,
 }
 
 impl Plane {
@@ -47,6 +65,8 @@ impl Plane {
             13 => Plane::Depth,
             14 => Plane::HasAlbedoNormal,
             15 => Plane::HasAoDepth,
+            16..=18 => Plane::Deviation(index - 16),
+            19 => Plane::HasVariance,
             _ => panic!("input plane {index} is outside 0..{INPUT_CHANNELS}"),
         }
     }
@@ -62,15 +82,38 @@ impl Plane {
             Plane::Depth => 13,
             Plane::HasAlbedoNormal => 14,
             Plane::HasAoDepth => 15,
+            Plane::Deviation(k) => 16 + k,
+            Plane::HasVariance => 19,
         }
     }
 
-    /// The optional pair this plane belongs to (its data or its presence flag), if any.
-    pub fn pair(self) -> Option<OptionalPair> {
+    /// The optional input this plane belongs to (its data or its presence flag), if any.
+    pub fn optional(self) -> Option<OptionalInput> {
         match self {
-            Plane::Albedo(_) | Plane::Normal(_) | Plane::HasAlbedoNormal => Some(OptionalPair::AlbedoNormal),
-            Plane::Ao | Plane::Depth | Plane::HasAoDepth => Some(OptionalPair::AoDepth),
+            Plane::Albedo(_) | Plane::Normal(_) | Plane::HasAlbedoNormal => Some(OptionalInput::AlbedoNormal),
+            Plane::Ao | Plane::Depth | Plane::HasAoDepth => Some(OptionalInput::AoDepth),
+            Plane::Deviation(_) | Plane::HasVariance => Some(OptionalInput::Variance),
             Plane::Color(_) | Plane::Guide(_) => None,
+        }
+    }
+
+    /// The colour channel this plane carries, if it carries one: such planes share one
+    /// channel permutation in training's augmentation.
+    pub fn colour_channel(self) -> Option<usize> {
+        match self {
+            Plane::Color(k) | Plane::Guide(k) | Plane::Albedo(k) | Plane::Deviation(k) => Some(k),
+            _ => None,
+        }
+    }
+
+    /// This plane with its colour channel replaced by `k` (other planes unchanged).
+    pub fn with_colour_channel(self, k: usize) -> Plane {
+        match self {
+            Plane::Color(_) => Plane::Color(k),
+            Plane::Guide(_) => Plane::Guide(k),
+            Plane::Albedo(_) => Plane::Albedo(k),
+            Plane::Deviation(_) => Plane::Deviation(k),
+            other => other,
         }
     }
 }
@@ -85,8 +128,19 @@ mod tests {
             assert_eq!(Plane::of(i).index(), i);
         }
         let members =
-            |p: OptionalPair| (0..INPUT_CHANNELS).filter(|&i| Plane::of(i).pair() == Some(p)).collect::<Vec<_>>();
-        assert_eq!(members(OptionalPair::AlbedoNormal), [6, 7, 8, 9, 10, 11, 14]);
-        assert_eq!(members(OptionalPair::AoDepth), [12, 13, 15]);
+            |p: OptionalInput| (0..INPUT_CHANNELS).filter(|&i| Plane::of(i).optional() == Some(p)).collect::<Vec<_>>();
+        assert_eq!(members(OptionalInput::AlbedoNormal), [6, 7, 8, 9, 10, 11, 14]);
+        assert_eq!(members(OptionalInput::AoDepth), [12, 13, 15]);
+        assert_eq!(members(OptionalInput::Variance), [16, 17, 18, 19]);
+        // Models made before the variance planes read the first 16, which hold none of them.
+        assert!((0..LEGACY_INPUT_CHANNELS).all(|i| Plane::of(i).optional() != Some(OptionalInput::Variance)));
+        for i in 0..INPUT_CHANNELS {
+            let p = Plane::of(i);
+            match p.colour_channel() {
+                Some(k) => assert_eq!(p.with_colour_channel(k), p),
+                None => assert_eq!(p.with_colour_channel(2), p),
+            }
+        }
+        assert_eq!(Plane::Deviation(0).with_colour_channel(2), Plane::Deviation(2));
     }
 }

@@ -47,6 +47,12 @@ pub enum Layer {
     Ao,
     /// A reference's estimated remaining relMSE, stored in every pixel (`noise.Y`).
     NoiseEstimate,
+    /// The variance of each pixel's mean in the beauty beside it, per channel
+    /// (`variance.R/G/B`): the noise the renderer measured, which the denoiser reads.
+    Variance,
+    /// The [`Layer::Variance`] of a dataset view's noisy render at this many samples per pixel
+    /// (`variance8.R/G/B`).
+    VarianceAt(u32),
 }
 
 impl Layer {
@@ -63,6 +69,8 @@ impl Layer {
             Layer::Depth => "depth".into(),
             Layer::Ao => "ao".into(),
             Layer::NoiseEstimate => "noise".into(),
+            Layer::Variance => "variance".into(),
+            Layer::VarianceAt(spp) => format!("variance{spp}"),
         }
     }
 
@@ -72,9 +80,14 @@ impl Layer {
             Layer::Normal => Channels::Xyz,
             Layer::Depth => Channels::Scalar("Z"),
             Layer::Ao | Layer::NoiseEstimate => Channels::Scalar("Y"),
-            Layer::Beauty | Layer::Noisy | Layer::NoisyAt(_) | Layer::Reference | Layer::Guide | Layer::Albedo => {
-                Channels::Rgb
-            }
+            Layer::Beauty
+            | Layer::Noisy
+            | Layer::NoisyAt(_)
+            | Layer::Reference
+            | Layer::Guide
+            | Layer::Albedo
+            | Layer::Variance
+            | Layer::VarianceAt(_) => Channels::Rgb,
         }
     }
 
@@ -98,9 +111,14 @@ impl Layer {
             Layer::Albedo => &["Denoising Albedo", "albedo", "diffuse_albedo", "DiffCol"],
             Layer::Normal => &["Denoising Normal", "normal", "N", "normals"],
             Layer::Depth => &["Denoising Depth", "depth"],
-            Layer::Noisy | Layer::NoisyAt(_) | Layer::Reference | Layer::Guide | Layer::Ao | Layer::NoiseEstimate => {
-                &[]
-            }
+            Layer::Noisy
+            | Layer::NoisyAt(_)
+            | Layer::Reference
+            | Layer::Guide
+            | Layer::Ao
+            | Layer::NoiseEstimate
+            | Layer::Variance
+            | Layer::VarianceAt(_) => &[],
         }
     }
 }
@@ -127,5 +145,7 @@ mod tests {
         assert_eq!(Layer::Ao.channel_names(), ["ao.Y"]);
         assert_eq!(Layer::NoisyAt(8).channel_names(), ["noisy8.R", "noisy8.G", "noisy8.B"]);
         assert_eq!(Layer::NoiseEstimate.channel_names(), ["noise.Y"]);
+        assert_eq!(Layer::Variance.channel_names(), ["variance.R", "variance.G", "variance.B"]);
+        assert_eq!(Layer::VarianceAt(8).channel_names(), ["variance8.R", "variance8.G", "variance8.B"]);
     }
 }

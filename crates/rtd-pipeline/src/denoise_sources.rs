@@ -19,7 +19,8 @@ use crate::PipelineError;
 /// (normals as n·0.5 + 0.5).
 ///
 /// The inputs set the mode, as OIDN's do: colour with albedo and normal (and a guide, from rtd),
-/// colour with albedo, or colour alone. Without a guide the albedo stands in for material
+/// colour with albedo, or colour alone. An EXR colour file from `rtd render` also carries the
+/// colour's per-pixel variance (`variance.*`), which the denoiser reads when its model does. Without a guide the albedo stands in for material
 /// colour × AO, and without an albedo the noisy colour itself (the thesis's §6.4 ablation).
 #[derive(Clone, Debug, Default)]
 pub struct DenoiseSources {
@@ -125,7 +126,13 @@ impl DenoiseSources {
         // Without a guide image, the albedo stands in for material colour × AO, and without an
         // albedo the noisy colour itself.
         let stand_in = guide.clone().or(albedo).unwrap_or_else(|| color.image.clone());
-        let mut input = DenoiseInput::new(&color.image, &stand_in);
+        // rtd's own renders carry the colour's per-pixel variance beside it.
+        let variance = color.exr.as_ref().and_then(|(layers, _)| layers.image(Layer::Variance));
+        let variance = variance.filter(|v| (v.width, v.height) == (color.image.width, color.image.height));
+        if variance.is_some() && denoiser.reads_variance() {
+            inputs.push("variance".to_string());
+        }
+        let mut input = DenoiseInput::new(&color.image, &stand_in).variance(variance.as_ref());
         if let Some((a, n)) = &albedo_normal {
             input = input.albedo_normal(a, n);
         }

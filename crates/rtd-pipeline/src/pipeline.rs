@@ -209,9 +209,9 @@ impl<'a> Pipeline<'a> {
         let denoised = match (self.denoiser, &guide) {
             (Some(denoiser), Some(pass)) => {
                 progress.start(1, "denoise");
-                let beauty = film.beauty();
+                let (beauty, variance) = (film.beauty(), film.variance());
                 let t = Instant::now();
-                let out = denoiser.denoise(&denoise_input(&beauty, pass))?;
+                let out = denoiser.denoise(&denoise_input(&beauty, pass).variance(variance.as_ref()))?;
                 timings.denoise_s = Some(t.elapsed().as_secs_f64());
                 progress.inc(1);
                 Some(out)
@@ -229,7 +229,7 @@ impl PipelineRun {
     }
 
     /// Writes the run to `path`, the format chosen by its extension. An EXR holds the film's
-    /// layers (beauty, albedo, normal, depth), the guide pass's (guide, albedo, normal, depth,
+    /// layers (beauty, its variance, albedo, normal, depth), the guide pass's (guide, albedo, normal, depth,
     /// AO) and, when denoised, the denoised beauty with the noisy one as `noisy`. A PFM or PHM
     /// holds [`PipelineRun::image`] as linear floats; a PNG or JPEG holds it exposed by
     /// `exposure` stops and tonemapped.

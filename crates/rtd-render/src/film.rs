@@ -1,4 +1,5 @@
-//! The film: per-pixel running sums of the beauty and the first-hit AOVs.
+//! The film: per-pixel running sums of the beauty, its square (for the per-pixel variance the
+//! denoiser reads) and the first-hit AOVs.
 //!
 //! Every sample is snapped to a multiple of [`SAMPLE_QUANTUM`] before it is added to an `f64`
 //! sum. Sums of such values are exact while they stay below 2^29, so they do not depend on the
@@ -27,6 +28,13 @@ pub(crate) fn quantize3(v: Vec3) -> DVec3 {
     DVec3::new(quantize(d.x), quantize(d.y), quantize(d.z))
 }
 
+/// The square of a snapped sample, snapped again, so that sums of squares are exact as well.
+#[inline]
+pub(crate) fn quantize_square(q: DVec3) -> DVec3 {
+    let s = q * q;
+    DVec3::new(quantize(s.x), quantize(s.y), quantize(s.z))
+}
+
 /// Accumulated samples for one image: samples `first_sample..spp` of every pixel.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Film {
@@ -40,6 +48,9 @@ pub struct Film {
     /// The first sample index this film holds: 0 unless it is one range of a split render.
     pub first_sample: u32,
     pub(crate) beauty: Vec<DVec3>,
+    /// Sums of the squared samples (each square snapped to the grid again, so these sums are
+    /// exact too): with `beauty` they give each pixel's sample variance.
+    pub(crate) beauty_sq: Vec<DVec3>,
     pub(crate) albedo: Vec<DVec3>,
     pub(crate) normal: Vec<DVec3>,
     pub(crate) depth: Vec<f64>,
@@ -63,6 +74,7 @@ impl Film {
             spp: first_sample,
             first_sample,
             beauty: vec![DVec3::ZERO; n],
+            beauty_sq: vec![DVec3::ZERO; n],
             albedo: vec![DVec3::ZERO; n],
             normal: vec![DVec3::ZERO; n],
             depth: vec![0.0; n],
@@ -80,7 +92,9 @@ impl Film {
     pub fn is_consistent(&self) -> bool {
         let n = self.width as usize * self.height as usize;
         self.first_sample <= self.spp
-            && [self.beauty.len(), self.albedo.len(), self.normal.len(), self.depth.len()].iter().all(|&l| l == n)
+            && [self.beauty.len(), self.beauty_sq.len(), self.albedo.len(), self.normal.len(), self.depth.len()]
+                .iter()
+                .all(|&l| l == n)
     }
 
     /// Appends `next`, the range that starts where this film ends. The sums are exact, so
@@ -94,6 +108,7 @@ impl Film {
         }
         let add3 = |a: &mut [DVec3], b: &[DVec3]| a.iter_mut().zip(b).for_each(|(a, b)| *a += *b);
         add3(&mut self.beauty, &next.beauty);
+        add3(&mut self.beauty_sq, &next.beauty_sq);
         add3(&mut self.albedo, &next.albedo);
         add3(&mut self.normal, &next.normal);
         self.depth.iter_mut().zip(&next.depth).for_each(|(a, b)| *a += *b);
@@ -111,6 +126,23 @@ impl Film {
     pub fn beauty(&self) -> HdrImage {
         let inv = self.inverse_samples();
         self.mean_image(|i| (self.beauty[i] * inv).as_vec3())
+    }
+
+    /// The variance of each pixel's mean, per channel: the sample variance
+    /// (Σx² − (Σx)²/N)/(N − 1) divided by N, the noise a denoiser should expect in
+    /// [`Film::beauty`]. None below 2 samples, where it is unknown.
+    pub fn variance(&self) -> Option<HdrImage> {
+        let n = self.samples();
+        if n < 2 {
+            return None;
+        }
+        let n = n as f64;
+        Some(self.mean_image(|i| {
+            let (sum, sq) = (self.beauty[i], self.beauty_sq[i]);
+            // Rounding can leave a tiny negative difference for a constant pixel.
+            let spread = (sq - sum * sum / n).max(DVec3::ZERO);
+            (spread / ((n - 1.0) * n)).as_vec3()
+        }))
     }
 
     /// Mean first-hit albedo.
@@ -136,10 +168,14 @@ impl Film {
         1.0 / self.samples().max(1) as f64
     }
 
-    /// The EXR channels: `R,G,B`, `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`.
+    /// The EXR channels: `R,G,B`, `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`, and from 2
+    /// samples on `variance.R/G/B` ([`Film::variance`]).
     pub fn layers(&self) -> Layers {
         let mut l = Layers::new(self.width, self.height);
         l.put_image(Layer::Beauty, &self.beauty());
+        if let Some(v) = self.variance() {
+            l.put_image(Layer::Variance, &v);
+        }
         l.put_image(Layer::Albedo, &self.albedo());
         l.put_image(Layer::Normal, &self.normal());
         l.put_plane(Layer::Depth, self.depth());
@@ -174,6 +210,26 @@ mod tests {
 
     /// Values far apart in magnitude, whose plain f64 sums depend on the grouping.
     const WIDE: [f64; 4] = [3.0e7, 1.0e-7 + 0.3, 0.1, -3.0e7 + 0.7];
+
+    #[test]
+    fn variance_of_the_mean_is_the_sample_variance_over_n() {
+        let mut film = Film::new(1, 1);
+        assert_eq!(film.variance(), None, "unknown without samples");
+        // Samples 1, 2, 3, 4 in red, a constant 5 in green, 0 in blue: sample variance 5/3,
+        // so the variance of the mean is 5/12.
+        for v in [1.0, 2.0, 3.0, 4.0] {
+            let q = quantize3(Vec3::new(v, 5.0, 0.0));
+            film.beauty[0] += q;
+            film.beauty_sq[0] += quantize_square(q);
+            film.spp += 1;
+            if film.spp == 1 {
+                assert_eq!(film.variance(), None, "unknown from one sample");
+            }
+        }
+        let v = film.variance().unwrap().pixels[0];
+        assert!((v.x - 5.0 / 12.0).abs() < 1e-6 && v.y == 0.0 && v.z == 0.0, "{v}");
+        assert!(film.layers().image(Layer::Variance).is_some());
+    }
 
     #[test]
     fn quantised_sums_do_not_depend_on_grouping() {

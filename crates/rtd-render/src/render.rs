@@ -9,7 +9,7 @@ use rtd_image::{Progress, Quiet, MAX_DIMENSION, MAX_PIXELS};
 use rtd_scene::{Camera, Scene};
 
 use crate::bvh::SceneBvh;
-use crate::film::{quantize, quantize3, Film};
+use crate::film::{quantize, quantize3, quantize_square, Film};
 use crate::integrator::Integrator;
 use crate::lights::LightSet;
 use crate::sampler::Sampler;
@@ -276,11 +276,12 @@ impl<'a> PathTracer<'a> {
         let wu = w as usize;
         film.beauty
             .par_chunks_mut(wu)
+            .zip(film.beauty_sq.par_chunks_mut(wu))
             .zip(film.albedo.par_chunks_mut(wu))
             .zip(film.normal.par_chunks_mut(wu))
             .zip(film.depth.par_chunks_mut(wu))
             .enumerate()
-            .for_each(|(y, (((beauty, albedo), normal), depth))| {
+            .for_each(|(y, ((((beauty, beauty_sq), albedo), normal), depth))| {
                 let mut row_rays = 0u64;
                 let mut row_bad = 0u64;
                 for x in 0..wu {
@@ -304,7 +305,9 @@ impl<'a> PathTracer<'a> {
                         }
                     }
                     // Quantised sums are exact, hence independent of how samples are grouped.
-                    beauty[x] += quantize3(l);
+                    let q = quantize3(l);
+                    beauty[x] += q;
+                    beauty_sq[x] += quantize_square(q);
                     if r.aov.albedo.is_finite() && r.aov.normal.is_finite() && r.aov.depth.is_finite() {
                         albedo[x] += quantize3(r.aov.albedo);
                         normal[x] += quantize3(r.aov.normal);

@@ -7,9 +7,11 @@ use std::path::{Path, PathBuf};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rtd_denoise::encode::{demod_albedo, demod_factor, encode_color_plane, encode_planes, Encoding};
-use rtd_denoise::planes::{OptionalPair, Plane};
-use rtd_denoise::{DenoiseInput, INPUT_CHANNELS};
+use rtd_denoise::encode::{
+    demod_albedo, demod_factor, encode_color_plane, encode_deviation_plane, encode_planes, Encoding,
+};
+use rtd_denoise::planes::{OptionalInput, Plane};
+use rtd_denoise::DenoiseInput;
 use rtd_image::{HdrImage, Layer};
 
 use crate::dataset::{view_path, Manifest, ViewRecord};
@@ -25,6 +27,9 @@ pub struct View {
     pub size: (usize, usize),
     /// Noisy renders by sample count, in the manifest's order.
     pub noisy: Vec<(u32, HdrImage)>,
+    /// Each noisy render's per-pixel variance, in the same order: None where the view's file
+    /// has none (datasets made before the variance planes, and 1-spp renders).
+    pub variance: Vec<Option<HdrImage>>,
     /// The high-spp reference render.
     pub reference: HdrImage,
     /// The guide RGB: albedo × AO.
@@ -43,13 +48,13 @@ impl View {
     /// The denoiser input for the noisy render at `spp`, with every guide layer; an error
     /// naming the view's file and the sample counts it has when it has no render at `spp`.
     pub fn input(&self, spp: u32) -> Result<DenoiseInput<'_>, TrainError> {
-        let Some((_, color)) = self.noisy.iter().find(|(s, _)| *s == spp) else {
+        let Some(k) = self.noisy.iter().position(|(s, _)| *s == spp) else {
             let stored: Vec<String> = self.noisy.iter().map(|(s, _)| s.to_string()).collect();
             let message = format!("has no noisy render at {spp} spp (it has {} spp)", stored.join(", "));
             return Err(TrainError::msg(&self.path, message));
         };
-        let input = DenoiseInput::new(color, &self.guide).albedo_normal(&self.albedo, &self.normal);
-        Ok(input.ao_depth(&self.ao, &self.depth))
+        let input = DenoiseInput::new(&self.noisy[k].1, &self.guide).albedo_normal(&self.albedo, &self.normal);
+        Ok(input.ao_depth(&self.ao, &self.depth).variance(self.variance.get(k).and_then(Option::as_ref)))
     }
 }
 
@@ -63,9 +68,10 @@ pub fn load_views(dir: &Path, validation: bool) -> Result<Vec<View>, TrainError>
         let missing = |layer: Layer| TrainError::msg(&path, format!("missing layer {}", layer.prefix()));
         let image = |layer: Layer| layers.image(layer).ok_or_else(|| missing(layer));
         let plane = |layer: Layer| layers.plane(layer).map(<[f32]>::to_vec).ok_or_else(|| missing(layer));
-        let mut noisy = vec![];
+        let (mut noisy, mut variance) = (vec![], vec![]);
         for spp in &manifest.noisy_spp {
             noisy.push((*spp, image(Layer::NoisyAt(*spp))?));
+            variance.push(layers.image(Layer::VarianceAt(*spp)));
         }
         let reference = image(Layer::Reference)?;
         views.push(View {
@@ -73,6 +79,7 @@ pub fn load_views(dir: &Path, validation: bool) -> Result<Vec<View>, TrainError>
             path: path.clone(),
             size: (reference.width as usize, reference.height as usize),
             noisy,
+            variance,
             guide: image(Layer::Guide)?,
             albedo: image(Layer::Albedo)?,
             normal: image(Layer::Normal)?,
@@ -95,8 +102,9 @@ struct Encoded {
     scale: Vec<f32>,
     /// The exposure the view was encoded with.
     exposure: f32,
-    /// For a demodulating model: the colour planes and target without demodulation, used by
-    /// crops whose albedo layer is dropped (inference demodulates only when albedo is given).
+    /// For a demodulating model: the colour and deviation planes (3 + 3) and the target
+    /// without demodulation, used by crops whose albedo layer is dropped (inference demodulates
+    /// only when albedo is given).
     plain: Option<(Vec<f32>, Vec<f32>)>,
 }
 
@@ -109,6 +117,17 @@ pub struct Batch {
     /// Decode scales, [n, 3, s, s]: linear radiance = (e^y − 1) × scale for an encoded colour
     /// y of the same crop (see [`crate::train::display_loss`]).
     pub scales: Vec<f32>,
+}
+
+/// Encodes the standard deviation of a variance image (not demodulated) into 3 × H × W, as
+/// the deviation planes hold it.
+fn encode_deviation(variance: &HdrImage, exposure: f32) -> Vec<f32> {
+    let n = variance.pixels.len();
+    let mut out = vec![0.0f32; 3 * n];
+    for (k, plane) in out.chunks_mut(n).enumerate() {
+        encode_deviation_plane(plane, variance, None, k, exposure);
+    }
+    out
 }
 
 /// Encodes the three channels of `img` (demodulated by `albedo` if given) into 3 × H × W.
@@ -129,10 +148,14 @@ pub struct CropSampler {
     /// Probability that a crop loses its albedo+normal layers, and (independently) its
     /// AO+depth layers.
     pub drop_probability: f32,
+    /// Probability that a crop loses its variance.
+    pub variance_drop_probability: f32,
+    /// Input planes per crop: the model's width.
+    channels: usize,
 }
 
-/// Default probability that a crop loses its albedo+normal (and, independently, AO+depth)
-/// layers, so the model also serves colour + guide RGB inputs from other software.
+/// Default probability that a crop loses its albedo+normal (and, independently, AO+depth, and
+/// the variance) layers, so the model also serves inputs from other software.
 pub const DROP_PROBABILITY: f32 = 0.3;
 
 impl CropSampler {
@@ -158,13 +181,24 @@ impl CropSampler {
                 let planes = encode_planes(&input, e, encoding)?;
                 let albedo = demod_albedo(&input, demodulate);
                 let target = encode_rgb(&v.reference, albedo, e);
-                let plain = demodulate.then(|| (encode_rgb(input.color, None, e), encode_rgb(&v.reference, None, e)));
+                let plain = demodulate.then(|| {
+                    let mut planes = encode_rgb(input.color, None, e);
+                    planes.extend(input.variance.map_or_else(|| vec![0.0; planes.len()], |v| encode_deviation(v, e)));
+                    (planes, encode_rgb(&v.reference, None, e))
+                });
                 let n = v.reference.pixels.len();
                 let scale = (0..3 * n).map(|j| demod_factor(albedo, j % n, j / n) / e).collect();
                 encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, scale, exposure: e, plain });
             }
         }
-        Ok(CropSampler { encoded, crop, drop_probability: DROP_PROBABILITY })
+        let channels = encoding.channels;
+        Ok(CropSampler {
+            encoded,
+            crop,
+            drop_probability: DROP_PROBABILITY,
+            variance_drop_probability: DROP_PROBABILITY,
+            channels,
+        })
     }
 
     /// Sets the probability that a crop loses each optional pair of guide layers.
@@ -173,12 +207,18 @@ impl CropSampler {
         self
     }
 
+    /// Sets the probability that a crop loses its variance.
+    pub fn variance_drop_probability(mut self, p: f32) -> Self {
+        self.variance_drop_probability = p;
+        self
+    }
+
     /// A batch of `n` crops for step `step` (a pure function of seed and step, so a resumed run
     /// sees the same batches).
     pub fn batch(&self, seed: u64, step: u64, n: usize) -> Batch {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ step.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let s = self.crop;
-        let (mut xs, mut ys) = (Vec::with_capacity(n * INPUT_CHANNELS * s * s), Vec::with_capacity(n * 3 * s * s));
+        let (mut xs, mut ys) = (Vec::with_capacity(n * self.channels * s * s), Vec::with_capacity(n * 3 * s * s));
         let mut scales = Vec::with_capacity(n * 3 * s * s);
         for _ in 0..n {
             let e = &self.encoded[rng.random_range(0..self.encoded.len())];
@@ -188,6 +228,7 @@ impl CropSampler {
             perm.shuffle(&mut rng);
             let drop_an = rng.random::<f32>() < self.drop_probability;
             let drop_ad = rng.random::<f32>() < self.drop_probability;
+            let drop_var = rng.random::<f32>() < self.variance_drop_probability;
             let black = rng.random::<f32>() < 0.02;
             // Source pixel of crop pixel (x, y) after the flips and transpose.
             let src = |x: usize, y: usize| {
@@ -201,23 +242,23 @@ impl CropSampler {
                 (y0 + v) * e.w + x0 + u
             };
             let n_px = e.w * e.h;
-            for c in 0..INPUT_CHANNELS {
+            for c in 0..self.channels {
                 let p = Plane::of(c);
-                // Colour-carrying groups share one channel permutation.
-                let sc = match p {
-                    Plane::Color(k) => Plane::Color(perm[k]).index(),
-                    Plane::Guide(k) => Plane::Guide(perm[k]).index(),
-                    Plane::Albedo(k) => Plane::Albedo(perm[k]).index(),
-                    _ => c,
+                // Colour-carrying planes share one channel permutation.
+                let source = p.colour_channel().map_or(p, |k| p.with_colour_channel(perm[k]));
+                let noise = matches!(p, Plane::Color(_) | Plane::Deviation(_));
+                let dropped = match p.optional() {
+                    Some(OptionalInput::AlbedoNormal) => drop_an,
+                    Some(OptionalInput::AoDepth) => drop_ad,
+                    Some(OptionalInput::Variance) => drop_var,
+                    None => false,
                 };
-                let color = matches!(p, Plane::Color(_));
-                let zero = (black && color)
-                    || (drop_an && p.pair() == Some(OptionalPair::AlbedoNormal))
-                    || (drop_ad && p.pair() == Some(OptionalPair::AoDepth));
-                // Without albedo, colour is not demodulated.
-                let plane = match (&e.plain, color && drop_an) {
-                    (Some((color, _)), true) => &color[sc * n_px..][..n_px],
-                    _ => &e.planes[sc * n_px..][..n_px],
+                let zero = (black && noise) || dropped;
+                // Without albedo, colour and deviation are not demodulated.
+                let plane = match (&e.plain, source, drop_an) {
+                    (Some((plain, _)), Plane::Color(k), true) => &plain[k * n_px..][..n_px],
+                    (Some((plain, _)), Plane::Deviation(k), true) => &plain[(3 + k) * n_px..][..n_px],
+                    _ => &e.planes[source.index() * n_px..][..n_px],
                 };
                 for y in 0..s {
                     for x in 0..s {
@@ -273,12 +314,38 @@ mod tests {
             path: PathBuf::from("toy.exr"),
             size: (8, 8),
             noisy: vec![(1, color.clone())],
+            variance: vec![None],
             reference: color.clone(),
             guide: img(&|x, _| Vec3::new(0.2, 0.4, 0.6) * (x % 2) as f32),
             albedo: img(&|_, _| Vec3::new(0.2, 0.4, 0.6)),
             normal: img(&|_, _| Vec3::Z),
             ao: vec![1.0; 64],
             depth: vec![2.0; 64],
+        }
+    }
+
+    impl CropSampler {
+        fn clone_with_variance_drop(&self, p: f32) -> CropSampler {
+            let encoded = self
+                .encoded
+                .iter()
+                .map(|e| Encoded {
+                    w: e.w,
+                    h: e.h,
+                    planes: e.planes.clone(),
+                    target: e.target.clone(),
+                    scale: e.scale.clone(),
+                    exposure: e.exposure,
+                    plain: e.plain.clone(),
+                })
+                .collect();
+            CropSampler {
+                encoded,
+                crop: self.crop,
+                drop_probability: self.drop_probability,
+                variance_drop_probability: p,
+                channels: self.channels,
+            }
         }
     }
 
@@ -296,7 +363,7 @@ mod tests {
             // channels of every crop equal its target.
             let px = 64;
             for b in 0..4 {
-                let xin = &x1[b * INPUT_CHANNELS * px..][..3 * px];
+                let xin = &x1[b * sampler.channels * px..][..3 * px];
                 let yt = &y1[b * 3 * px..][..3 * px];
                 assert_eq!(xin, yt);
             }
@@ -333,12 +400,50 @@ mod tests {
         let flags = |p: f32| {
             let x = sampler(None).drop_probability(p).batch(5, 0, 64).inputs;
             let px = 64;
-            (0..64).map(|b| (x[(b * INPUT_CHANNELS + an) * px], x[(b * INPUT_CHANNELS + ad) * px])).collect::<Vec<_>>()
+            let c = rtd_denoise::INPUT_CHANNELS;
+            (0..64).map(|b| (x[(b * c + an) * px], x[(b * c + ad) * px])).collect::<Vec<_>>()
         };
         assert!(flags(0.0).iter().all(|&f| f == (1.0, 1.0)));
         assert!(flags(1.0).iter().all(|&f| f == (0.0, 0.0)));
         let half = flags(0.5);
         assert!(half.contains(&(1.0, 1.0)) && half.contains(&(0.0, 0.0)) && half.contains(&(1.0, 0.0)));
+    }
+
+    #[test]
+    fn deviation_planes_follow_the_colour_through_every_augmentation() {
+        // A variance equal to colour², so the deviation is the colour itself: whatever the
+        // crop's flips, permutation, demodulation or dropped albedo, its deviation planes must
+        // equal its colour planes, unless the variance was dropped (then 0, flag 0).
+        let mut view = toy_view();
+        let color = view.noisy[0].1.clone();
+        let squared = HdrImage::from_pixels(8, 8, color.pixels.iter().map(|p| *p * *p).collect());
+        view.noisy = vec![(8, color)];
+        view.variance = vec![Some(squared)];
+        let px = 64;
+        let (c, dev, flag) = (rtd_denoise::INPUT_CHANNELS, Plane::Deviation(0).index(), Plane::HasVariance.index());
+        for demodulate in [false, true] {
+            let encoding = Encoding { demodulate, ..Encoding::default() };
+            let sampler = CropSampler::new(std::slice::from_ref(&view), 8, encoding, None).unwrap();
+            let (mut shown, mut hidden) = (0, 0);
+            for p in [0.0, 0.5, 1.0] {
+                let x = sampler.clone_with_variance_drop(p).batch(9, 1, 32).inputs;
+                for b in 0..32 {
+                    let crop = &x[b * c * px..][..c * px];
+                    if crop[flag * px] == 1.0 {
+                        assert_eq!(crop[..3 * px], crop[dev * px..][..3 * px], "demodulate {demodulate}");
+                        shown += 1;
+                    } else {
+                        assert!(crop[dev * px..][..4 * px].iter().all(|v| *v == 0.0));
+                        hidden += 1;
+                    }
+                }
+            }
+            assert!(shown >= 40 && hidden >= 40, "{shown} crops with the variance, {hidden} without");
+        }
+        // A legacy-width model's crops carry the first 16 planes only.
+        let legacy = Encoding { channels: rtd_denoise::planes::LEGACY_INPUT_CHANNELS, ..Encoding::default() };
+        let sampler = CropSampler::new(std::slice::from_ref(&view), 8, legacy, None).unwrap();
+        assert_eq!(sampler.batch(9, 1, 2).inputs.len(), 2 * 16 * px);
     }
 
     #[test]

@@ -49,6 +49,15 @@ pub struct TrainOptions {
     /// layers, so the model also serves inputs with the guide RGB alone.
     #[serde(default = "default_guide_drop")]
     pub guide_drop: f32,
+    /// Probability that a crop loses its per-pixel variance (independently of the guide
+    /// layers), so the model also serves files from other software, which have none. Runs
+    /// made before the variance planes had none to lose: their state files read 1.
+    #[serde(default = "never_shown")]
+    pub variance_drop: f32,
+}
+
+fn never_shown() -> f32 {
+    1.0
 }
 
 fn default_guide_drop() -> f32 {
@@ -72,6 +81,7 @@ impl Default for TrainOptions {
             display_loss: 0.0,
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
+            variance_drop: DROP_PROBABILITY,
         }
     }
 }
@@ -124,6 +134,11 @@ impl TrainOptions {
         self.guide_drop = p.clamp(0.0, 1.0);
         self
     }
+    /// Sets the probability that a crop loses its variance (clamped to [0, 1]).
+    pub fn variance_drop(mut self, p: f32) -> Self {
+        self.variance_drop = p.clamp(0.0, 1.0);
+        self
+    }
     /// Sets steps per epoch.
     pub fn epoch_steps(mut self, n: u64) -> Self {
         self.epoch_steps = n;
@@ -172,6 +187,9 @@ impl TrainOptions {
         }
         if !(0.0..=1.0).contains(&self.guide_drop) {
             return Some(format!("the guide drop probability {} is not in [0, 1]", self.guide_drop));
+        }
+        if !(0.0..=1.0).contains(&self.variance_drop) {
+            return Some(format!("the variance drop probability {} is not in [0, 1]", self.variance_drop));
         }
         let (crop, align, side) = (self.crop, self.config.alignment(), manifest.options.size as usize);
         if crop == 0 || crop % align != 0 {

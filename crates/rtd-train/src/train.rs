@@ -10,7 +10,7 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::store::ModuleRecord;
 use burn::tensor::{Device, Tensor, TensorData};
-use rtd_denoise::{Denoiser, DenoiserConfig, DenoiserNet, INPUT_CHANNELS};
+use rtd_denoise::{Denoiser, DenoiserConfig, DenoiserNet};
 use rtd_image::metrics;
 use serde::{Deserialize, Serialize};
 
@@ -255,13 +255,19 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     let config = DenoiserConfig::from_json(&text)
         .map_err(|e| TrainError::msg(&cfg_path, format!("not a usable model config: {e}")))?;
     // Demodulation and the exposure key change what the input planes mean, not the weights'
-    // shapes, so a model without them may seed one with them.
+    // shapes, so a model without them may seed one with them; a model reading fewer input
+    // planes seeds one reading more, whose stem starts with zero weights for the new ones.
+    let narrower = config.input_channels < options.config.input_channels;
+    if config.input_channels > options.config.input_channels {
+        return Err(TrainError::msg(&cfg_path, "reads more input planes than the network being trained"));
+    }
     let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
-    if config != options.config {
+    if config.clone().with_input_channels(options.config.input_channels) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))
+    let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
+    Ok(if narrower { net.widen_input(options.config.input_channels) } else { net })
 }
 
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing
@@ -343,7 +349,8 @@ fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<Vi
     let val_views = load_views(data, true)?;
     let sampler =
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
-            .drop_probability(options.guide_drop);
+            .drop_probability(options.guide_drop)
+            .variance_drop_probability(options.variance_drop);
     Ok((sampler, val_views))
 }
 
@@ -404,7 +411,8 @@ fn loss_and_gradients(
     device: &Device,
 ) -> (f32, GradientsParams) {
     let (b, s) = (options.batch, options.crop);
-    let x = Tensor::<4>::from_data(TensorData::new(batch.inputs, [b, INPUT_CHANNELS, s, s]), device);
+    let c = options.config.input_channels;
+    let x = Tensor::<4>::from_data(TensorData::new(batch.inputs, [b, c, s, s]), device);
     let y = Tensor::<4>::from_data(TensorData::new(batch.targets, [b, 3, s, s]), device);
     let out = net.forward(x);
     let mut loss = training_loss(out.clone(), y.clone());
@@ -581,7 +589,11 @@ mod tests {
         };
         let old = state("0.0", "null", "null");
         let parsed: TrainState = serde_json::from_str(&old).unwrap();
-        assert_eq!(parsed.options, TrainOptions::default());
+        // Made before the variance planes: 16 input planes, and no variance to show.
+        let before_variance = TrainOptions::default()
+            .config(DenoiserConfig::unet().with_input_channels(rtd_denoise::planes::LEGACY_INPUT_CHANNELS))
+            .variance_drop(1.0);
+        assert_eq!(parsed.options, before_variance);
         assert_eq!(parsed.history[0].validation.map(|v| v.noisy_psnr), Some(24.0));
         assert_eq!(removed_option(&old), None);
         let e = removed_option(&state("0.5", "null", "null")).unwrap();

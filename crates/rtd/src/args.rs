@@ -133,6 +133,10 @@ pub struct TrainLossArgs {
     /// AO + depth layers, so the model also serves colour + guide RGB alone.
     #[arg(long, default_value_t = rtd_train::data::DROP_PROBABILITY, value_parser = probability)]
     pub guide_drop: f32,
+    /// Probability that a training crop loses its per-pixel variance, so the model also serves
+    /// files from other software, which have none (1: never show it).
+    #[arg(long, default_value_t = rtd_train::data::DROP_PROBABILITY, value_parser = probability)]
+    pub variance_drop: f32,
 }
 
 /// `rtd denoise` options.

@@ -92,8 +92,12 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
 /// file) or the shipped U-Net, with `--demodulate` and `--exposure-key` applied.
 fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
     let (schedule, model, loss) = (&args.schedule, &args.model, &args.loss);
+    // A model made before the variance planes is widened to read them (its stem starts with
+    // zero weights there), so every model trained now reads every plane this rtd provides.
     let config = match &model.init {
-        Some(path) => rtd_denoise::Denoiser::load(path)?.config().clone(),
+        Some(path) => {
+            rtd_denoise::Denoiser::load(path)?.config().clone().with_input_channels(rtd_denoise::INPUT_CHANNELS)
+        }
         None => DenoiserConfig::unet(),
     };
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
@@ -108,6 +112,7 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         .display_loss(loss.display_loss)
         .spp_levels((!loss.spp_levels.is_empty()).then(|| loss.spp_levels.clone()))
         .guide_drop(loss.guide_drop)
+        .variance_drop(loss.variance_drop)
         .seed(schedule.seed)
         .steps(schedule.steps)
         .batch(schedule.batch as usize, schedule.crop as usize)

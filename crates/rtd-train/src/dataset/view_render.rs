@@ -1,5 +1,6 @@
 //! Rendering one dataset view: the guide pass, a preview that may reject the view, the noisy
-//! renders at every [`SPP_LADDER`] count and the reference. Every render's seed derives from
+//! renders at every [`SPP_LADDER`] count (with their per-pixel variance from 2 spp on) and
+//! the reference. Every render's seed derives from
 //! (master seed, scene, view, purpose), so a view is the same bytes on any machine.
 
 use std::path::Path;
@@ -7,7 +8,7 @@ use std::time::Instant;
 
 use rtd_guide::{GuidePass, GuideSettings};
 use rtd_image::{luminance, HdrImage, Layer, Layers};
-use rtd_render::{PathTracer, RenderScene, RenderSettings, SPP_LADDER};
+use rtd_render::{Film, PathTracer, RenderScene, RenderSettings, SPP_LADDER};
 use serde::{Deserialize, Serialize};
 
 use super::DatasetOptions;
@@ -96,8 +97,11 @@ impl DatasetScene {
         }
         let mut layers = Layers::new(size, size);
         for (k, spp) in SPP_LADDER.iter().enumerate() {
-            let img = beauty(rs, &cam, size, render_seed(options.seed, index, view, k as u64), *spp)?;
-            layers.put_image(Layer::NoisyAt(*spp), &img);
+            let film = render_film(rs, &cam, size, render_seed(options.seed, index, view, k as u64), *spp)?;
+            layers.put_image(Layer::NoisyAt(*spp), &film.beauty());
+            if let Some(variance) = film.variance() {
+                layers.put_image(Layer::VarianceAt(*spp), &variance);
+            }
         }
         guide.add_to(&mut layers);
         let (reference, rounds, reference_relmse) = render_reference(rs, &cam, options, index, view)?;
@@ -124,12 +128,17 @@ fn render_seed(master: u64, scene: u64, view: usize, purpose: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Renders `spp` samples with `seed` and returns the beauty.
-fn beauty(rs: &RenderScene, cam: &rtd_scene::Camera, size: u32, seed: u64, spp: u32) -> Result<HdrImage, TrainError> {
+/// Renders `spp` samples with `seed`.
+fn render_film(rs: &RenderScene, cam: &rtd_scene::Camera, size: u32, seed: u64, spp: u32) -> Result<Film, TrainError> {
     let tracer = PathTracer::new(rs, cam.clone(), RenderSettings::new(size, size).seed(seed))?;
     let mut film = tracer.film();
     tracer.render(&mut film, spp)?;
-    Ok(film.beauty())
+    Ok(film)
+}
+
+/// Renders `spp` samples with `seed` and returns the beauty.
+fn beauty(rs: &RenderScene, cam: &rtd_scene::Camera, size: u32, seed: u64, spp: u32) -> Result<HdrImage, TrainError> {
+    Ok(render_film(rs, cam, size, seed, spp)?.beauty())
 }
 
 /// Why a view is unusable, if it is: black (almost no light) or empty (mostly sky or one flat colour).
