@@ -1,7 +1,7 @@
 //! Mutation fuzzing of every loader that reads a stranger's bytes, on the stable toolchain: an
 //! in-process harness whose mutations are drawn through `arbitrary` from a seeded generator,
-//! starting from small valid files it writes itself. A crash is a panic, a run over 10 s on
-//! one input, or an allocation that would take the process past 2 GiB (refused by the
+//! starting from small valid files it writes itself. A crash is a panic, a run over 10 s of
+//! processor time on one input, or an allocation that would take the process past 2 GiB (refused by the
 //! allocator below, which aborts the run). Found crashes are kept in
 //! `tests/fuzz-regressions/TARGET/` and replayed first, every run.
 //!
@@ -291,28 +291,44 @@ enum Budget {
     Cpu(f64),
 }
 
-/// User + system processor seconds of this process so far, from `/proc/self/stat` (in the
-/// kernel's USER_HZ ticks, 100 a second on Linux).
-fn process_cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    // Fields after the command name, which is in parentheses and may hold spaces: utime and
-    // stime are the 14th and 15th fields of the line, the 12th and 13th after the name.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let ticks: Vec<f64> = rest.split_whitespace().skip(11).take(2).filter_map(|t| t.parse().ok()).collect();
-    ticks.iter().sum::<f64>() / 100.0
+/// Processor time (user + system, all threads) this process has used so far.
+fn process_cpu() -> Duration {
+    let mut t = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes the timespec it is given and nothing else.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) };
+    Duration::new(t.tv_sec as u64, t.tv_nsec as u32)
 }
 
-/// Aborts the run when one input has run past [`TIME_LIMIT`] (a hang would otherwise stall CI);
-/// the input stays in the work folder. `busy_since` is 0 between inputs, else the start in ms.
-fn watchdog(busy_since: &'static AtomicUsize, origin: Instant, input: PathBuf) {
-    std::thread::spawn(move || loop {
-        std::thread::sleep(Duration::from_millis(500));
-        let since = busy_since.load(Ordering::Relaxed);
-        // Saturating: an input started within the current millisecond is stored as now + 1.
-        let running = (origin.elapsed().as_millis() as usize).saturating_sub(since);
-        if since != 0 && running > TIME_LIMIT.as_millis() as usize {
-            eprintln!("fuzz: one input ran past {TIME_LIMIT:?}: {}", input.display());
-            std::process::abort();
+/// [`process_cpu`] in seconds.
+fn process_cpu_seconds() -> f64 {
+    process_cpu().as_secs_f64()
+}
+
+/// The wall-clock bound on one input, for a hang that uses no processor time (a blocked call):
+/// long, since a campaign run at low priority beside other work may wait its turn for minutes.
+const WALL_LIMIT: Duration = Duration::from_secs(600);
+
+/// Aborts the run when one input has used more than [`TIME_LIMIT`] of processor time, or
+/// [`WALL_LIMIT`] of wall time (a hang would otherwise stall CI); the input stays in the work
+/// folder. `busy` holds the number of the input in flight (from 1), 0 between inputs. Processor
+/// time, not wall time, is the measure: at low priority a loader can wait far longer than it
+/// runs, and waiting is no crash.
+fn watchdog(busy: &'static AtomicUsize, input: PathBuf) {
+    std::thread::spawn(move || {
+        // The input last seen in flight, with the processor and wall time when first seen.
+        let mut seen: Option<(usize, Duration, Instant)> = None;
+        loop {
+            std::thread::sleep(Duration::from_millis(500));
+            let now = busy.load(Ordering::Relaxed);
+            match seen {
+                Some((n, cpu, wall)) if n == now && now != 0 => {
+                    if process_cpu() - cpu > TIME_LIMIT || wall.elapsed() > WALL_LIMIT {
+                        eprintln!("fuzz: one input ran past {TIME_LIMIT:?} of processor time: {}", input.display());
+                        std::process::abort();
+                    }
+                }
+                _ => seen = (now != 0).then(|| (now, process_cpu(), Instant::now())),
+            }
         }
     });
 }
@@ -330,21 +346,18 @@ fn fuzz(target: &Target, budget: Budget, seed: u64) -> Campaign {
     let mut campaign = Campaign { runs: 0, crashes: vec![], contained: 0, wall: 0.0, cpu: 0.0 };
     let contained_before = rtd::image::contained_panics();
     let busy: &'static AtomicUsize = Box::leak(Box::new(AtomicUsize::new(0)));
-    let origin = Instant::now();
-    watchdog(busy, origin, path.clone());
+    watchdog(busy, path.clone());
     let (start, cpu_start) = (Instant::now(), process_cpu_seconds());
-    let spent = |runs: u64| match budget {
+    let spent = || match budget {
         Budget::Wall(_) => start.elapsed().as_secs_f64(),
-        // Reading /proc costs a few microseconds: once every 64 inputs is enough.
-        Budget::Cpu(_) if runs.is_multiple_of(64) => process_cpu_seconds() - cpu_start,
-        Budget::Cpu(_) => 0.0,
+        Budget::Cpu(_) => process_cpu_seconds() - cpu_start,
     };
     let limit = match budget {
         Budget::Wall(s) | Budget::Cpu(s) => s,
     };
     // The seeds themselves first (and so every kept regression), then mutations.
     let mut queue: Vec<Vec<u8>> = seeds.clone();
-    while !queue.is_empty() || spent(campaign.runs) < limit {
+    while !queue.is_empty() || spent() < limit {
         let input = match queue.pop() {
             Some(i) => i,
             None => {
@@ -356,11 +369,11 @@ fn fuzz(target: &Target, budget: Budget, seed: u64) -> Campaign {
             }
         };
         std::fs::write(&path, &input).unwrap();
-        let t = Instant::now();
-        busy.store(origin.elapsed().as_millis() as usize + 1, Ordering::Relaxed);
+        let t = process_cpu();
+        busy.store(campaign.runs as usize + 1, Ordering::Relaxed);
         let result = std::panic::catch_unwind(|| (target.load)(&path, &input));
         busy.store(0, Ordering::Relaxed);
-        let took = t.elapsed();
+        let took = process_cpu() - t;
         campaign.runs += 1;
         let why = match result {
             Err(panic) => Some(
@@ -370,7 +383,7 @@ fn fuzz(target: &Target, budget: Budget, seed: u64) -> Campaign {
                     .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                     .unwrap_or_else(|| "panic".into()),
             ),
-            Ok(()) if took > TIME_LIMIT => Some(format!("took {took:?}")),
+            Ok(()) if took > TIME_LIMIT => Some(format!("took {took:?} of processor time")),
             Ok(()) => None,
         };
         if let Some(why) = why {
@@ -401,7 +414,7 @@ fn loaders_survive_mutated_input() {
         }
         let c = fuzz(&target, budget, seed);
         eprintln!(
-            "fuzz {:>6}: {:>8} runs in {:.0} s ({:.0} s of processor time), {} crashes, {} dependency panics contained",
+            "fuzz {:>6}: {:>8} runs in {:.1} s ({:.1} s of processor time), {} crashes, {} dependency panics contained",
             target.name,
             c.runs,
             c.wall,

@@ -1,13 +1,35 @@
 //! A fast inference path for [`DenoiserNet`]: the same function evaluated on planar (CHW)
-//! feature maps with im2col + the `gemm` crate, threaded over pixel chunks, and branch outputs
-//! written straight into their planes of the concatenation. Planar maps put pixels, not
-//! channels, along the gemm kernel's vector lanes, so the narrow (6- and 12-channel) branch
-//! convolutions fill them. A test holds it to burn's output.
+//! feature maps, with branch outputs written straight into their planes of the concatenation.
+//! Convolutions run on the AVX-512 direct kernel ([`crate::direct`]) where the CPU has it, else
+//! as im2col + the `gemm` crate, threaded over pixel chunks. Planar maps put pixels, not
+//! channels, along the vector lanes, so the narrow (6- and 12-channel) branch convolutions
+//! fill them. A test holds both kernels to burn's output.
 
 use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
 
+use crate::direct::DirectWeights;
 use crate::model::{DenoiserNet, InceptionBlock};
+
+/// Which convolution kernel the fast path runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// The AVX-512 direct convolution (only where [`crate::direct::available`]).
+    Direct,
+    /// im2col + gemm, on any CPU.
+    Gemm,
+}
+
+impl Kernel {
+    /// The fastest kernel this CPU runs.
+    pub fn best() -> Self {
+        if crate::direct::available() {
+            Kernel::Direct
+        } else {
+            Kernel::Gemm
+        }
+    }
+}
 
 /// A C×H×W feature map: one plane per channel.
 #[derive(Clone, Debug)]
@@ -58,6 +80,8 @@ struct Conv {
     dil: usize,
     weights: Vec<f32>,
     bias: Vec<f32>,
+    /// The same weights for the direct kernel, when it runs.
+    direct: Option<DirectWeights>,
 }
 
 thread_local! {
@@ -96,7 +120,14 @@ impl Conv {
             Some(b) => b.val().into_data().convert::<f32>().try_to_vec::<f32>().expect("f32 bias"),
             None => vec![0.0; cout],
         };
-        Conv { cin, cout, kh, kw, dil: conv.dilation[0], weights, bias }
+        Conv { cin, cout, kh, kw, dil: conv.dilation[0], weights, bias, direct: None }
+    }
+
+    /// Prepares the weights for `kernel`.
+    fn for_kernel(mut self, kernel: Kernel) -> Self {
+        self.direct = (kernel == Kernel::Direct)
+            .then(|| DirectWeights::new(self.cin, self.cout, (self.kh, self.kw, self.dil), &self.weights, &self.bias));
+        self
     }
 
     /// Two 1×1 convolutions side by side: [a_in, b_in] → [a(a_in), b(b_in)].
@@ -111,12 +142,15 @@ impl Conv {
             let row = (a.cin + ci) * cout + a.cout;
             weights[row..row + b.cout].copy_from_slice(&b.weights[ci * b.cout..(ci + 1) * b.cout]);
         }
-        Conv { cin, cout, kh: 1, kw: 1, dil: 1, weights, bias: [a.bias.clone(), b.bias.clone()].concat() }
+        Conv { cin, cout, kh: 1, kw: 1, dil: 1, weights, bias: [a.bias.clone(), b.bias.clone()].concat(), direct: None }
     }
 
     /// Writes conv(x) (+ bias, optionally ReLU) into planes [offset, offset + cout) of `dst`,
     /// a map of the same size as `x` with `dst.c` planes.
     fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool) {
+        if let Some(direct) = &self.direct {
+            return direct.apply(x, dst, offset, relu, None);
+        }
         assert_eq!(x.c, self.cin);
         assert!(offset + self.cout <= dst.c && (dst.w, dst.h) == (x.w, x.h));
         let (w, h, k) = (x.w, x.h, self.kh * self.kw * self.cin);
@@ -184,9 +218,27 @@ impl Conv {
         });
     }
 
+    /// How many rows above and below an output row its value reads.
+    fn reach(&self) -> usize {
+        (self.kh - 1) / 2 * self.dil
+    }
+
     fn run(&self, x: &Map, relu: bool, scratch: &mut Scratch) -> Map {
         let mut out = scratch.map(x.w, x.h, self.cout);
         self.apply(x, &mut out, 0, relu);
+        out
+    }
+
+    /// relu(conv(x)) + residual.
+    fn run_residual(&self, x: &Map, residual: &Map, scratch: &mut Scratch) -> Map {
+        let mut out = scratch.map(x.w, x.h, self.cout);
+        match &self.direct {
+            Some(direct) => direct.apply(x, &mut out, 0, true, Some(residual)),
+            None => {
+                self.apply(x, &mut out, 0, true);
+                out.data.par_iter_mut().zip(residual.data.par_iter()).for_each(|(a, b)| *a += b);
+            }
+        }
         out
     }
 }
@@ -219,34 +271,72 @@ fn gather_shifted(plane: &[f32], w: usize, p0: usize, dx: isize, dy: isize, dst:
     }
 }
 
+/// Output rows per band of [`FastBlock::forward_banded`].
+const BAND: usize = 32;
+
+/// Rows `rows` of every plane of `x`, as a map of their own.
+fn rows_of(x: &Map, rows: std::ops::Range<usize>, scratch: &mut Scratch) -> Map {
+    let (w, h) = (x.w, x.h);
+    let mut band = scratch.map(w, rows.len(), x.c);
+    band.data.par_chunks_mut(w * rows.len()).enumerate().for_each(|(c, plane)| {
+        plane.copy_from_slice(&x.data[(c * h + rows.start) * w..][..w * rows.len()]);
+    });
+    band
+}
+
+/// Copies rows `rows` of every plane of `src` into `dst` from row `at` on.
+fn put_rows(src: &Map, rows: std::ops::Range<usize>, dst: &mut Map, at: usize) {
+    let (w, sh, dh) = (src.w, src.h, dst.h);
+    dst.data.par_chunks_mut(w * dh).enumerate().for_each(|(c, plane)| {
+        plane[at * w..][..w * rows.len()].copy_from_slice(&src.data[(c * sh + rows.start) * w..][..w * rows.len()]);
+    });
+}
+
 /// 3×3 stride-1 max and min pooling over the valid neighbours, separably per plane: planes
 /// [0, c) hold the max, [c, 2c) the min.
 fn pool3_max_min(x: &Map, scratch: &mut Scratch) -> Map {
     let mut out = scratch.map(x.w, x.h, 2 * x.c);
     let (w, h, n) = (x.w, x.h, x.w * x.h);
     let (maxes, mins) = out.data.split_at_mut(x.c * n);
-    // A neighbour outside the plane is replaced by the centre, which leaves a max or min as is.
-    maxes.par_chunks_mut(n).zip(mins.par_chunks_mut(n)).enumerate().for_each(|(c, (mx, mn))| {
-        let plane = &x.data[c * n..][..n];
-        let (mut hi, mut lo) = (vec![0.0f32; w], vec![0.0f32; w]);
-        for y in 0..h {
-            // Vertical max/min over rows y−1..=y+1, then horizontal over x−1..=x+1.
-            let mid = &plane[y * w..][..w];
-            let up = &plane[y.saturating_sub(1) * w..][..w];
-            let down = &plane[(y + 1).min(h - 1) * w..][..w];
-            for ((((a, b), m), u), d) in hi.iter_mut().zip(lo.iter_mut()).zip(mid).zip(up).zip(down) {
-                *a = m.max(*u).max(*d);
-                *b = m.min(*u).min(*d);
-            }
-            let (mx, mn) = (&mut mx[y * w..][..w], &mut mn[y * w..][..w]);
-            for px in 0..w {
-                let (l, r) = (px.saturating_sub(1), (px + 1).min(w - 1));
-                mx[px] = hi[px].max(hi[l]).max(hi[r]);
-                mn[px] = lo[px].min(lo[l]).min(lo[r]);
-            }
+    let tasks = maxes.par_chunks_mut(n).map(|p| (p, true)).chain(mins.par_chunks_mut(n).map(|p| (p, false)));
+    tasks.enumerate().for_each(|(task, (dst, is_max))| {
+        let plane = &x.data[(task % x.c) * n..][..n];
+        // Plain comparisons (inputs are finite), which map to single vector instructions.
+        if is_max {
+            pool3(plane, w, h, dst, |a, b| if a > b { a } else { b });
+        } else {
+            pool3(plane, w, h, dst, |a, b| if a < b { a } else { b });
         }
     });
     out
+}
+
+/// One plane's 3×3 extreme under `pick` (max or min; generic, so each is compiled to vector
+/// code), over the valid neighbours: the clamped row indices and the shorter edge windows
+/// leave out what lies outside the plane.
+#[inline(always)]
+fn pool3(plane: &[f32], w: usize, h: usize, dst: &mut [f32], pick: impl Fn(f32, f32) -> f32 + Copy) {
+    let mut line = vec![0.0f32; w];
+    for y in 0..h {
+        // Vertical extreme over rows y−1..=y+1 (the row itself stands in for a missing one).
+        let mid = &plane[y * w..][..w];
+        let up = &plane[y.saturating_sub(1) * w..][..w];
+        let down = &plane[(y + 1).min(h - 1) * w..][..w];
+        for (((l, m), u), d) in line.iter_mut().zip(mid).zip(up).zip(down) {
+            *l = pick(pick(*m, *u), *d);
+        }
+        // Horizontal extreme over columns x−1..=x+1.
+        let row = &mut dst[y * w..][..w];
+        if w == 1 {
+            row[0] = line[0];
+            continue;
+        }
+        row[0] = pick(line[0], line[1]);
+        row[w - 1] = pick(line[w - 1], line[w - 2]);
+        for ((r, a), (b, c)) in row[1..w - 1].iter_mut().zip(&line[..w - 2]).zip(line[1..].iter().zip(&line[2..])) {
+            *r = pick(pick(*a, *b), *c);
+        }
+    }
 }
 
 /// 2×2 stride-2 max pooling (even sizes).
@@ -292,15 +382,44 @@ struct FastBlock {
 }
 
 impl FastBlock {
-    fn from(b: &InceptionBlock) -> Self {
+    /// How many rows above and below an output row the block reads: its furthest vertical tap,
+    /// and the pooling's one row.
+    fn reach(&self) -> usize {
+        [self.three.reach(), self.dilated.reach(), self.prong_v.reach(), 1].into_iter().max().unwrap_or(1)
+    }
+
+    /// [`FastBlock::forward`] band by band: each band of [`BAND`] output rows is computed from
+    /// its rows of `x` plus [`FastBlock::reach`] more on either side, so that the block's
+    /// intermediate maps (the concatenation, the pooled planes) stay in cache instead of
+    /// streaming whole images through memory.
+    fn forward_banded(&self, x: &Map, scratch: &mut Scratch) -> Map {
+        let reach = self.reach();
+        if x.h <= BAND + 2 * reach {
+            return self.forward(x, scratch);
+        }
+        let mut out = scratch.map(x.w, x.h, self.mix.cout);
+        for y0 in (0..x.h).step_by(BAND) {
+            let y1 = (y0 + BAND).min(x.h);
+            let (a, b) = (y0.saturating_sub(reach), (y1 + reach).min(x.h));
+            let band = rows_of(x, a..b, scratch);
+            let y = self.forward(&band, scratch);
+            scratch.recycle(band);
+            put_rows(&y, y0 - a..y1 - a, &mut out, y0);
+            scratch.recycle(y);
+        }
+        out
+    }
+
+    fn from(b: &InceptionBlock, kernel: Kernel) -> Self {
+        let conv = |c: &burn::nn::conv::Conv2d| Conv::from(c).for_kernel(kernel);
         FastBlock {
-            one: Conv::from(&b.one),
-            three: Conv::from(&b.three),
-            dilated: Conv::from(&b.dilated),
-            prong_h: Conv::from(&b.prong_h),
-            prong_v: Conv::from(&b.prong_v),
-            pool_proj: Conv::block_diagonal(&Conv::from(&b.max_proj), &Conv::from(&b.min_proj)),
-            mix: Conv::from(&b.mix),
+            one: conv(&b.one),
+            three: conv(&b.three),
+            dilated: conv(&b.dilated),
+            prong_h: conv(&b.prong_h),
+            prong_v: conv(&b.prong_v),
+            pool_proj: Conv::block_diagonal(&Conv::from(&b.max_proj), &Conv::from(&b.min_proj)).for_kernel(kernel),
+            mix: conv(&b.mix),
             residual: b.residual,
         }
     }
@@ -320,11 +439,8 @@ impl FastBlock {
         let pooled = pool3_max_min(x, scratch);
         self.pool_proj.apply(&pooled, &mut cat, off, true);
         scratch.recycle(pooled);
-        let mut y = self.mix.run(&cat, true, scratch);
+        let y = if self.residual { self.mix.run_residual(&cat, x, scratch) } else { self.mix.run(&cat, true, scratch) };
         scratch.recycle(cat);
-        if self.residual {
-            y.data.par_iter_mut().zip(x.data.par_iter()).for_each(|(a, b)| *a += b);
-        }
         y
     }
 }
@@ -339,7 +455,7 @@ struct FastDecoder {
 }
 
 impl FastDecoder {
-    fn from(d: &crate::model::Decoder) -> Self {
+    fn from(d: &crate::model::Decoder, kernel: Kernel) -> Self {
         let fuse = Conv::from(&d.fuse);
         let coarse = fuse.cin - fuse.cout; // fuse: [c(l+1) + c(l)] → c(l)
         let split = |rows: std::ops::Range<usize>, bias: bool| Conv {
@@ -350,11 +466,12 @@ impl FastDecoder {
             dil: 1,
             weights: fuse.weights[rows.start * fuse.cout..rows.end * fuse.cout].to_vec(),
             bias: if bias { fuse.bias.clone() } else { vec![0.0; fuse.cout] },
+            direct: None,
         };
         FastDecoder {
-            fuse_coarse: split(0..coarse, false),
-            fuse_skip: split(coarse..fuse.cin, true),
-            refine: Conv::from(&d.refine),
+            fuse_coarse: split(0..coarse, false).for_kernel(kernel),
+            fuse_skip: split(coarse..fuse.cin, true).for_kernel(kernel),
+            refine: Conv::from(&d.refine).for_kernel(kernel),
         }
     }
 
@@ -381,14 +498,19 @@ pub struct FastNet {
 }
 
 impl FastNet {
-    /// Copies the weights out of a burn network.
+    /// Copies the weights out of a burn network, for the fastest kernel this CPU runs.
     pub fn from_net(net: &DenoiserNet) -> Self {
+        Self::with_kernel(net, Kernel::best())
+    }
+
+    /// Copies the weights out of a burn network, for `kernel` (which must run on this CPU).
+    pub fn with_kernel(net: &DenoiserNet, kernel: Kernel) -> Self {
         FastNet {
-            stem: Conv::from(&net.stem),
-            encoders: net.encoders.iter().map(FastBlock::from).collect(),
-            bottleneck: net.bottleneck.iter().map(FastBlock::from).collect(),
-            decoders: net.decoders.iter().map(FastDecoder::from).collect(),
-            output: Conv::from(&net.output),
+            stem: Conv::from(&net.stem).for_kernel(kernel),
+            encoders: net.encoders.iter().map(|b| FastBlock::from(b, kernel)).collect(),
+            bottleneck: net.bottleneck.iter().map(|b| FastBlock::from(b, kernel)).collect(),
+            decoders: net.decoders.iter().map(|d| FastDecoder::from(d, kernel)).collect(),
+            output: Conv::from(&net.output).for_kernel(kernel),
         }
     }
 
@@ -403,11 +525,11 @@ impl FastNet {
                 let down = downsample(&y, scratch);
                 skips.push(std::mem::replace(&mut y, down));
             }
-            let next = enc.forward(&y, scratch);
+            let next = enc.forward_banded(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
         }
         for b in &self.bottleneck {
-            let next = b.forward(&y, scratch);
+            let next = b.forward_banded(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
         }
         for dec in self.decoders.iter().rev() {
@@ -437,18 +559,28 @@ mod tests {
             DenoiserConfig::new(vec![8]).with_bottleneck_blocks(1),
             DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(0),
         ];
-        // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row.
-        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44)] {
+        // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row;
+        // 24×100 runs the full-resolution blocks in bands, the last one short.
+        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100)] {
             let config = &configs[i];
             let net = config.init(&device);
             let c = config.input_channels;
             let chw: Vec<f32> = (0..c * w * h).map(|i| (i * 7919 % 1000) as f32 / 500.0 - 1.0).collect();
             let reference = net.forward(Tensor::<4>::from_data(TensorData::new(chw.clone(), [1, c, h, w]), &device));
             let reference: Vec<f32> = reference.into_data().try_to_vec::<f32>().unwrap();
-            let fast = FastNet::from_net(&net).forward(&Map { w, h, c, data: chw }, &mut Scratch::default());
-            assert_eq!(fast.data.len(), reference.len());
-            let worst = fast.data.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-            assert!(worst < 1e-4, "{:?} at {w}x{h}: fast path differs from burn by {worst}", config.channels);
+            let kernels =
+                if crate::direct::available() { vec![Kernel::Gemm, Kernel::Direct] } else { vec![Kernel::Gemm] };
+            for kernel in kernels {
+                let map = Map { w, h, c, data: chw.clone() };
+                let fast = FastNet::with_kernel(&net, kernel).forward(&map, &mut Scratch::default());
+                assert_eq!(fast.data.len(), reference.len());
+                let worst = fast.data.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+                assert!(
+                    worst < 1e-4,
+                    "{:?} at {w}x{h}, {kernel:?}: fast path differs from burn by {worst}",
+                    config.channels
+                );
+            }
         }
     }
 }
