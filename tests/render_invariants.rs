@@ -111,6 +111,48 @@ fn reported_variance_is_the_sample_variance_of_the_pixel_samples() {
     assert!(one.variance().is_none() && one.layers().image(rtd::image::Layer::Variance).is_none());
 }
 
+/// The camera's near clip (glTF `znear`): a wall just in front of the lens but nearer than the
+/// clip is not seen, by the path tracer's camera rays or by the guide pass, and depth is still
+/// measured from the eye. Without the clip the wall fills the view.
+#[test]
+fn the_near_clip_hides_what_lies_in_front_of_it() {
+    let scene = cornell();
+    let cam = cornell_camera(&scene);
+    // A dark wall facing the camera, 0.05 in front of it.
+    let mut walled = scene.clone();
+    let m = walled.materials.len() as u32;
+    walled.materials.push(material(Vec3::splat(0.02), 1.0, 0.0, 0.0));
+    let c = cam.position + cam.forward * 0.05;
+    let (r, u) = (cam.right * 10.0, cam.up * 10.0);
+    quad(&mut walled, c - r - u, c + r - u, c + r + u, c - r + u, m);
+    quad(&mut walled, c - r - u, c - r + u, c + r + u, c + r - u, m);
+    let settings = RenderSettings::new(24, 24).seed(2);
+    let aovs = |scene: &Scene, cam: &Camera| {
+        let f = render(scene.clone(), cam.clone(), settings.clone(), 1);
+        let l = f.layers();
+        [rtd::image::Layer::Albedo, rtd::image::Layer::Normal].map(|k| l.image(k).unwrap()).to_vec()
+    };
+    let depth = |scene: &Scene, cam: &Camera| render(scene.clone(), cam.clone(), settings.clone(), 1).depth();
+    let clipped = cam.clone().with_znear(0.1);
+    // The same clipped camera rays with and without the wall: the same first hits.
+    assert!(aovs(&walled, &clipped) == aovs(&scene, &clipped), "the clip must hide the wall");
+    // Depth is measured from the eye, as without a clip.
+    let (near, far) = (depth(&walled, &clipped), depth(&scene, &cam));
+    for (a, b) in near.iter().zip(&far) {
+        assert!((a - b).abs() <= 1e-4 * b.max(1.0), "depth {a} against {b}");
+    }
+    assert!(aovs(&walled, &cam) != aovs(&scene, &cam), "without the clip the wall is seen");
+    let guide = |scene: &Scene, cam: &Camera| {
+        let prepared = RenderScene::new(scene.clone());
+        let g =
+            rtd::guide::GuidePass::render(&prepared.scene, &prepared.bvh, cam, &rtd::guide::GuideSettings::new(24, 24))
+                .unwrap();
+        (g.albedo, g.normal)
+    };
+    assert!(guide(&walled, &clipped) == guide(&scene, &clipped), "the guide pass clips too");
+    assert!(guide(&walled, &cam) != guide(&scene, &cam));
+}
+
 /// Root-mean-square difference of two images.
 fn rmse(a: &rtd::image::HdrImage, b: &rtd::image::HdrImage) -> f64 {
     let s: f64 = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x - *y).length_squared() as f64).sum();

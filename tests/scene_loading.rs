@@ -428,10 +428,12 @@ fn cameras_and_lights() {
     assert!(warn.is_none());
     assert_eq!(cam.projection, Projection::Orthographic { ymag: 1.5 });
     assert_eq!(cam.aspect_ratio, Some(2.0 / 1.5), "an orthographic camera's aspect is xmag / ymag");
+    assert_eq!(cam.znear, 0.1);
     assert!((cam.forward - Vec3::NEG_X).length() < 1e-5, "{}", cam.forward);
     let (cam, _) = sc.select_camera(Some("0")).unwrap();
     assert_eq!(cam.projection, Projection::Perspective { yfov: 0.5 });
     assert_eq!(cam.aspect_ratio, None, "no aspectRatio in the file");
+    assert_eq!(cam.znear, 0.1, "znear is the near clip");
     let e = sc.select_camera(Some("nope")).unwrap_err();
     assert_eq!(e, CameraError::NoSuchName { name: "nope".into(), available: vec!["persp".into(), "ortho".into()] });
     assert_eq!(e.to_string(), "no camera named 'nope' (cameras: persp, ortho)");

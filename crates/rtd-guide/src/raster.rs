@@ -137,8 +137,9 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
         let key = if persp { 1.0 / c.z } else { -c.z };
         (Vec3::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32, key), w)
     };
-    // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there).
-    let near = if persp { near } else { 0.0 };
+    // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there,
+    // or the camera's own near clip).
+    let near = if persp { near } else { cam.znear };
     // One triangle's screen triangles: none, one, or two (a clipped quad, fan-triangulated).
     let project = |i: usize, t: &rtd_scene::Triangle| -> [Option<ScreenTri>; 2] {
         let c = t.p.map(|p| to_camera(cam, p));
@@ -207,7 +208,7 @@ where
     let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
     // The near plane sits far enough in front of the eye to keep 1/z well conditioned.
     let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
-    let near = (far * 1e-6).max(f32::MIN_POSITIVE);
+    let near = (far * 1e-6).max(f32::MIN_POSITIVE).max(cam.znear);
     let tris = setup(scene, cam, width, height, near);
     let offsets = sample_offsets();
     // How far a sample can lie from its pixel's centre, along x or y.

@@ -291,7 +291,13 @@ impl<'a> PathTracer<'a> {
                     let u = sampler.get_2d();
                     let film_pos = Vec2::new(x as f32 + 0.5 + sample_tent(u.x), y as f32 + 0.5 + sample_tent(u.y));
                     let (o, d) = self.camera.ray(film_pos, w, h);
-                    let r = integrator.trace(o, d, &mut sampler);
+                    // The near clip: the camera ray starts on its plane; depth stays the
+                    // distance from the eye.
+                    let clip = self.camera.clip_distance(d);
+                    let mut r = integrator.trace(o + d * clip, d, &mut sampler);
+                    if r.aov.depth > 0.0 {
+                        r.aov.depth += clip;
+                    }
                     row_rays += r.rays as u64;
                     let mut l = r.radiance;
                     if !l.is_finite() {

@@ -36,6 +36,9 @@ pub struct Camera {
     /// The width ÷ height the file's camera was made for (glTF `aspectRatio`, or `xmag/ymag`),
     /// which the image size follows unless both sides are given; None when the file says none.
     pub aspect_ratio: Option<f32>,
+    /// The near clip distance along the view axis (glTF `znear`): what lies nearer the eye is
+    /// not seen. 0: no clip.
+    pub znear: f32,
 }
 
 impl Camera {
@@ -54,6 +57,24 @@ impl Camera {
         self
     }
 
+    /// The same camera with a near clip at `znear` along the view axis (ignored unless positive
+    /// and finite).
+    pub fn with_znear(mut self, znear: f32) -> Self {
+        self.znear = if znear > 0.0 && znear.is_finite() { znear } else { 0.0 };
+        self
+    }
+
+    /// How far along the primary ray direction `dir` (unit, from [`Camera::ray`]) the near clip
+    /// plane lies: primary rays start there.
+    #[inline]
+    pub fn clip_distance(&self, dir: Vec3) -> f32 {
+        match self.projection {
+            // The plane z = znear in camera space, met at t·cos θ = znear.
+            Projection::Perspective { .. } => self.znear / dir.dot(self.forward).max(1e-6),
+            Projection::Orthographic { .. } => self.znear,
+        }
+    }
+
     /// A perspective camera at `from` looking at `at`, with +Y as the up hint.
     pub fn look_at(from: Vec3, at: Vec3, yfov_degrees: f32) -> Self {
         let forward = (at - from).normalize_or(Vec3::NEG_Z);
@@ -69,7 +90,7 @@ impl Camera {
         }
         let right = right.normalize();
         let up = right.cross(forward).normalize();
-        Camera { name: name.into(), position, right, up, forward, projection, aspect_ratio: None }
+        Camera { name: name.into(), position, right, up, forward, projection, aspect_ratio: None, znear: 0.0 }
     }
 
     /// A perspective camera that frames `bounds` from the front, slightly above.
@@ -124,10 +145,12 @@ impl Camera {
         Some((Vec2::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32), dist))
     }
 
-    /// This camera with position and orthographic extent transformed by a uniform scale and offset.
+    /// This camera with position, near clip and orthographic extent transformed by a uniform
+    /// scale and offset.
     pub fn scaled(&self, scale: f32, offset: Vec3) -> Self {
         let mut c = self.clone();
         c.position = c.position * scale + offset;
+        c.znear *= scale;
         if let Projection::Orthographic { ymag } = c.projection {
             c.projection = Projection::Orthographic { ymag: ymag * scale };
         }

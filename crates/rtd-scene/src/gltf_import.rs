@@ -240,13 +240,17 @@ impl NodeVisitor<'_> {
 /// A camera node's camera; unnamed cameras take the node's name, else `camera{number}`.
 fn convert_camera(cam: &gltf::Camera, node: &gltf::Node, world: Mat4, number: usize) -> Camera {
     let name = cam.name().or(node.name()).map(str::to_string).unwrap_or_else(|| format!("camera{number}"));
-    let (projection, aspect) = match cam.projection() {
-        gltf::camera::Projection::Perspective(p) => (Projection::Perspective { yfov: p.yfov() }, p.aspect_ratio()),
+    let (projection, aspect, znear) = match cam.projection() {
+        gltf::camera::Projection::Perspective(p) => {
+            (Projection::Perspective { yfov: p.yfov() }, p.aspect_ratio(), p.znear())
+        }
         gltf::camera::Projection::Orthographic(o) => {
-            (Projection::Orthographic { ymag: o.ymag().abs() }, Some(o.xmag().abs() / o.ymag().abs()))
+            (Projection::Orthographic { ymag: o.ymag().abs() }, Some(o.xmag().abs() / o.ymag().abs()), o.znear())
         }
     };
-    Camera::from_matrix(name, world, projection).with_aspect_ratio(aspect)
+    // znear is along the camera's own axis; the node's scale, which the camera drops, would
+    // scale it too (glTF cameras carry no scale in practice).
+    Camera::from_matrix(name, world, projection).with_aspect_ratio(aspect).with_znear(znear)
 }
 
 fn convert_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Light {
