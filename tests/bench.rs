@@ -36,7 +36,13 @@ fn etrt_report_has_every_image_and_consistent_numbers() {
     let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
     assert!(md.contains("ETRT (equal time)") && md.contains("speed-up"));
     let img = image::open(dir.path().join("out/side-by-side.png")).unwrap();
-    assert_eq!(img.width(), 4 * 32 + 3 * 4, "four panels side by side");
+    // Four panels side by side, each at least as wide as its two-line label, under which they sit.
+    assert_eq!(img.width(), 4 * 230 + 3 * 4, "four panels side by side");
+    assert_eq!(img.height(), 44 + 32 + 4 + 32, "labels, images, zooms");
+    let labels = rtd::bench::figures::panel_labels(&report);
+    let noisy = &report.images.noisy;
+    assert_eq!(labels[0][1], format!("{} spp, {:.2} dB", noisy.spp, noisy.metrics.psnr));
+    assert!(labels[2][0].contains("equal time") && labels[3][1].ends_with("spp"), "{labels:?}");
     // A second run reuses the cached reference.
     let (again, _) = run_etrt(&scene, &model, &options, None, &dir.path().join("cache"), &Quiet).unwrap();
     assert!(again.reference.contains("cached") && !again.reference.contains("rendered"), "{}", again.reference);

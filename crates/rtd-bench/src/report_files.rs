@@ -20,7 +20,7 @@ pub fn write_etrt(dir: &Path, report: &EtrtReport, images: &EtrtImages) -> Resul
     let md = dir.join("report.md");
     write_text(&md, &report.markdown())?;
     let side = dir.join("side-by-side.png");
-    crate::figures::side_by_side(&side, images)?;
+    crate::figures::side_by_side(&side, images, report)?;
     let plot = dir.join("error-vs-time.png");
     crate::figures::error_plot(&plot, std::slice::from_ref(report))?;
     Ok(vec![json, md, side, plot])

@@ -98,25 +98,18 @@ fn write_summary(dir: &Path, results: &[SceneResult]) -> Result<(), BenchError> 
     write_text(&dir.join("summary.md"), &summary_markdown(results))?;
     let reports: Vec<EtrtReport> = results.iter().map(|r| r.etrt.clone()).collect();
     crate::figures::error_plot(&dir.join("error-vs-time.png"), &reports)?;
-    let mut series = vec![];
+    let mut chart = Chart::new("spp sweep 1-64: raw against denoised", "wall time (s)", "relMSE against the reference")
+        .log(true, true);
     for r in results {
         let name = crate::figures::scene_name(&r.etrt.scene);
-        series.push(Series::line(
-            format!("{name}: raw"),
-            r.sweep.iter().map(|p| (p.render_s, p.raw.relmse.log10())).collect(),
-        ));
-        series.push(Series::line(
+        chart
+            .series
+            .push(Series::line(format!("{name}: raw"), r.sweep.iter().map(|p| (p.render_s, p.raw.relmse)).collect()));
+        chart.series.push(Series::line(
             format!("{name}: denoised"),
-            r.sweep.iter().map(|p| (p.pipeline_s, p.denoised.relmse.log10())).collect(),
+            r.sweep.iter().map(|p| (p.pipeline_s, p.denoised.relmse)).collect(),
         ));
     }
-    let chart = Chart {
-        title: "spp sweep 1-64: raw vs denoised".into(),
-        x_label: "seconds (log)".into(),
-        y_label: "log10 relMSE".into(),
-        log_x: true,
-        series,
-    };
     write_charts(&dir.join("sweep.png"), &[chart])?;
     Ok(())
 }

@@ -20,25 +20,16 @@ pub fn training_charts(state: &TrainState) -> Vec<Chart> {
         w if w > 0.0 => format!("L1 (log colour) + {w} x display MSE"),
         _ => "L1 (log colour)".into(),
     };
-    let mut charts = vec![Chart {
-        title: "training loss".into(),
-        x_label: "step".into(),
-        y_label,
-        log_x: false,
-        series: vec![Series::line("train (mean of 20 steps)", smoothed)],
-    }];
+    let mut charts =
+        vec![Chart::new("training loss", "optimiser step", y_label)
+            .with(Series::line("train (mean of 20 steps)", smoothed))];
     let validated: Vec<_> = state.history.iter().filter_map(|r| Some((r.step as f64, r.validation?))).collect();
     if !validated.is_empty() {
-        charts.push(Chart {
-            title: format!("validation at {} spp", state.options.validation_spp),
-            x_label: "step".into(),
-            y_label: "PSNR (dB)".into(),
-            log_x: false,
-            series: vec![
-                Series::line("denoised", validated.iter().map(|(step, v)| (*step, v.psnr)).collect()),
-                Series::line("noisy input", validated.iter().map(|(step, v)| (*step, v.noisy_psnr)).collect()),
-            ],
-        });
+        charts.push(
+            Chart::new(format!("validation at {} spp", state.options.validation_spp), "optimiser step", "PSNR (dB)")
+                .with(Series::line("denoised", validated.iter().map(|(step, v)| (*step, v.psnr)).collect()))
+                .with(Series::line("noisy input", validated.iter().map(|(step, v)| (*step, v.noisy_psnr)).collect())),
+        );
     }
     charts
 }
