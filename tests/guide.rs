@@ -326,7 +326,6 @@ fn textures_finer_than_a_pixel_are_averaged_not_aliased() {
             p: [c[i].0, c[j].0, c[k].0],
             n: [Vec3::Y; 3],
             uv: [c[i].1, c[j].1, c[k].1],
-            tangent: [Vec4::ZERO; 3],
             material: 0,
         });
     }

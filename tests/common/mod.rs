@@ -1,7 +1,7 @@
 //! Scene builders shared by the integration tests.
 #![allow(dead_code)]
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 use rtd::render::{Film, PathTracer, RenderScene, RenderSettings};
 use rtd::scene::{Camera, Environment, Material, Scene, Triangle};
 
@@ -15,13 +15,7 @@ pub fn material(color: Vec3, roughness: f32, metallic: f32, transmission: f32) -
 /// Adds a triangle with flat normals.
 pub fn tri(scene: &mut Scene, p: [Vec3; 3], material: u32) {
     let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
-    scene.push_triangle(Triangle {
-        p,
-        n: [n; 3],
-        uv: [Vec2::ZERO, Vec2::X, Vec2::ONE],
-        tangent: [Vec4::ZERO; 3],
-        material,
-    });
+    scene.push_triangle(Triangle { p, n: [n; 3], uv: [Vec2::ZERO, Vec2::X, Vec2::ONE], material });
 }
 
 /// Adds a quad a-b-c-d (counter-clockwise seen from its front).
@@ -41,13 +35,7 @@ pub fn sphere(scene: &mut Scene, center: Vec3, r: f32, material: u32, nu: u32, n
         for i in 0..nu {
             let (a, b, c, d) = (pt(i, j), pt(i, j + 1), pt(i + 1, j + 1), pt(i + 1, j));
             for t in [[a, b, c], [a, c, d]] {
-                scene.push_triangle(Triangle {
-                    p: t.map(|n| center + n * r),
-                    n: t,
-                    uv: [Vec2::ZERO; 3],
-                    tangent: [Vec4::ZERO; 3],
-                    material,
-                });
+                scene.push_triangle(Triangle { p: t.map(|n| center + n * r), n: t, uv: [Vec2::ZERO; 3], material });
             }
         }
     }

@@ -8,7 +8,9 @@
 mod error;
 pub mod etrt;
 pub mod figures;
+pub mod procedural;
 pub mod report_files;
+pub mod scaling;
 pub mod speed;
 pub mod suite;
 pub mod validation;

@@ -313,8 +313,11 @@ impl GuidePass {
                 }
                 let tangent = m.tangent_normal_filtered(&scene.textures, uv, &f);
                 out.albedo += albedo * inv;
-                let normal_map =
-                    tangent.map(|value| NormalMap { value, uv: scene.uv_set(hit.triangle, m.normal_tex_coord()) });
+                let normal_map = tangent.map(|value| NormalMap {
+                    value,
+                    uv: scene.uv_set(hit.triangle, m.normal_tex_coord()),
+                    tangents: scene.tangents(hit.triangle),
+                });
                 out.normal += shading_normal(t, b, ng, normal_map) * inv;
                 out.depth += d * inv;
                 if s == n / 2 {

@@ -451,13 +451,7 @@ mod tests {
         scene.materials.push(Material::default());
         // Ceiling at y = 1: edge a–b in view, c behind the camera.
         let p = [Vec3::new(-2.0, 1.0, -3.0), Vec3::new(3.0, 1.0, -4.5), Vec3::new(0.5, 1.0, 5.0)];
-        scene.push_triangle(Triangle {
-            p,
-            n: [Vec3::NEG_Y; 3],
-            uv: [Vec2::ZERO; 3],
-            tangent: [glam::Vec4::ZERO; 3],
-            material: 0,
-        });
+        scene.push_triangle(Triangle { p, n: [Vec3::NEG_Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
         let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
         let (w, h) = (97u32, 61u32);
         // Screen positions of a and b in f64, as in `setup`.
@@ -499,13 +493,7 @@ mod tests {
         scene.materials.push(Material::default());
         // A floor triangle seen obliquely, so perspective makes the barycentrics non-affine.
         let p = [Vec3::new(-3.0, 0.0, 1.0), Vec3::new(3.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -9.0)];
-        scene.push_triangle(Triangle {
-            p,
-            n: [Vec3::Y; 3],
-            uv: [Vec2::ZERO; 3],
-            tangent: [glam::Vec4::ZERO; 3],
-            material: 0,
-        });
+        scene.push_triangle(Triangle { p, n: [Vec3::Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
         let cam = Camera::look_at(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 0.0, -2.0), 50.0);
         let tris = setup(&scene, &cam, 64, 64, 1e-3);
         assert_eq!(tris.len(), 1);

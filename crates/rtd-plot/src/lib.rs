@@ -109,17 +109,24 @@ const CHART: (u32, u32) = (640, 440);
 /// Height of one legend row.
 const LEGEND_ROW: u32 = 20;
 
-/// Draws `charts` side by side into a PNG at `path` (written atomically).
+/// Most charts side by side in one row of a picture; more go on further rows.
+pub const MAX_COLUMNS: usize = 3;
+
+/// Draws `charts` side by side (in rows of at most [`MAX_COLUMNS`]) into a PNG at `path`
+/// (written atomically).
 pub fn write_charts(path: &Path, charts: &[Chart]) -> Result<(), ImageError> {
     register_font();
-    let rows = charts.iter().map(|c| c.series.len()).max().unwrap_or(0) as u32;
-    let (w, h) = (CHART.0 * charts.len().max(1) as u32, CHART.1 + rows * LEGEND_ROW + 8);
+    let legend_rows = charts.iter().map(|c| c.series.len()).max().unwrap_or(0) as u32;
+    let columns = charts.len().clamp(1, MAX_COLUMNS);
+    let rows = charts.len().div_ceil(columns).max(1);
+    let cell = CHART.1 + legend_rows * LEGEND_ROW + 8;
+    let (w, h) = (CHART.0 * columns as u32, cell * rows as u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         let err = |e: String| ImageError::invalid(path, format!("cannot draw plot: {e}"));
         root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let areas = root.split_evenly((1, charts.len().max(1)));
+        let areas = root.split_evenly((rows, columns));
         for (chart, area) in charts.iter().zip(areas) {
             let (plot, legend) = area.split_vertically(CHART.1);
             draw(chart, &plot).map_err(err)?;

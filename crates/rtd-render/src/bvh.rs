@@ -125,7 +125,8 @@ pub struct SceneBvh {
     verts: Vec<[Vec3A; 3]>,
     /// Scene triangle index of each slot.
     slot_tri: Vec<u32>,
-    /// Alpha cut-out data per slot: (cutoff, material) for masked triangles.
+    /// Alpha cut-out data per slot: (cutoff, material) for masked triangles; empty when the
+    /// scene has none, as `uvs` is.
     mask: Vec<Option<(f32, u32)>>,
     uvs: Vec<[Vec2; 3]>,
 }
@@ -133,12 +134,7 @@ pub struct SceneBvh {
 impl SceneBvh {
     /// Builds the BVH over all scene triangles (an empty scene gives a BVH that never hits).
     pub fn build(scene: &Scene) -> Self {
-        let tris: Vec<BvhTriangle> = scene
-            .triangles
-            .iter()
-            .map(|t| BvhTriangle { v0: t.p[0].into(), v1: t.p[1].into(), v2: t.p[2].into() })
-            .collect();
-        if tris.is_empty() {
+        if scene.triangles.is_empty() {
             return SceneBvh {
                 bvh: CwBvh::default(),
                 k: 1.0,
@@ -151,23 +147,49 @@ impl SceneBvh {
         let bounds = scene.bounds();
         let max_abs = bounds.min.abs().max(bounds.max.abs()).max_element().max(f32::MIN_POSITIVE);
         let k = (2f32).powi((1e4f32 / max_abs).log2().round().clamp(-100.0, 100.0) as i32);
-        let scaled: Vec<BvhTriangle> =
-            tris.iter().map(|t| BvhTriangle { v0: t.v0 * k, v1: t.v1 * k, v2: t.v2 * k }).collect();
-        let bvh = build_cwbvh_from_tris(&scaled, BvhBuildParams::medium_build(), &mut Duration::default());
-        let slot_tri: Vec<u32> = bvh.primitive_indices.clone();
-        let verts = slot_tri.iter().map(|&i| [tris[i as usize].v0, tris[i as usize].v1, tris[i as usize].v2]).collect();
-        let mask = slot_tri
+        let scaled: Vec<BvhTriangle> = scene
+            .triangles
             .iter()
-            .map(|&i| {
-                let m = scene.triangles[i as usize].material;
-                match scene.materials[m as usize].alpha_mode {
-                    AlphaMode::Mask(cut) => Some((cut, m)),
-                    _ => None,
-                }
+            .map(|t| BvhTriangle {
+                v0: Vec3A::from(t.p[0]) * k,
+                v1: Vec3A::from(t.p[1]) * k,
+                v2: Vec3A::from(t.p[2]) * k,
             })
             .collect();
-        let uvs = slot_tri.iter().map(|&i| scene.triangles[i as usize].uv).collect();
+        let bvh = build_cwbvh_from_tris(&scaled, BvhBuildParams::medium_build(), &mut Duration::default());
+        drop(scaled);
+        let slot_tri: Vec<u32> = bvh.primitive_indices.clone();
+        let verts = slot_tri.iter().map(|&i| scene.triangles[i as usize].p.map(Vec3A::from)).collect();
+        // Cut-out data only where some material masks: most scenes keep no per-slot copy.
+        let masked = |i: u32| {
+            let m = scene.triangles[i as usize].material;
+            match scene.materials[m as usize].alpha_mode {
+                AlphaMode::Mask(cut) => Some((cut, m)),
+                _ => None,
+            }
+        };
+        let any_masked = scene.materials.iter().any(|m| matches!(m.alpha_mode, AlphaMode::Mask(_)));
+        let (mask, uvs) = if any_masked {
+            (
+                slot_tri.iter().map(|&i| masked(i)).collect(),
+                slot_tri.iter().map(|&i| scene.triangles[i as usize].uv).collect(),
+            )
+        } else {
+            (vec![], vec![])
+        };
         SceneBvh { bvh, k, verts, slot_tri, mask, uvs }
+    }
+
+    /// Bytes held on the heap: nodes, slot order, vertices and cut-out data.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.bvh.nodes.as_slice())
+            + size_of_val(self.bvh.primitive_indices.as_slice())
+            + self.bvh.exact_node_aabbs.as_ref().map_or(0, |a| size_of_val(a.as_slice()))
+            + size_of_val(self.verts.as_slice())
+            + size_of_val(self.slot_tri.as_slice())
+            + size_of_val(self.mask.as_slice())
+            + size_of_val(self.uvs.as_slice())
     }
 
     /// Number of triangles in the BVH.
@@ -183,7 +205,7 @@ impl SceneBvh {
     /// True if a masked triangle's cut-out removes the surface at barycentrics `b`.
     #[inline]
     fn cut_away(&self, slot: usize, b: Vec3, scene: &Scene) -> bool {
-        match self.mask[slot] {
+        match self.mask.get(slot).copied().flatten() {
             None => false,
             Some((cutoff, m)) => {
                 let uv = self.uvs[slot];
@@ -273,12 +295,11 @@ impl SceneBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec4;
     use rtd_scene::Triangle;
 
     /// A triangle facing +z with material 0.
     pub(super) fn tri(p: [Vec3; 3]) -> Triangle {
-        Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 }
+        Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: 0 }
     }
 
     fn quad_scene() -> Scene {

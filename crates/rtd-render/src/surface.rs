@@ -39,9 +39,11 @@ impl Surface {
         let material = &scene.materials[t.material as usize];
         let mut params = material.evaluate(&scene.textures, uv);
         params.base_color *= scene.vertex_color(hit.triangle, b);
-        let normal_map = params
-            .tangent_normal
-            .map(|value| NormalMap { value, uv: scene.uv_set(hit.triangle, material.normal_tex_coord()) });
+        let normal_map = params.tangent_normal.map(|value| NormalMap {
+            value,
+            uv: scene.uv_set(hit.triangle, material.normal_tex_coord()),
+            tangents: scene.tangents(hit.triangle),
+        });
         let ns = shading_normal(t, b, ng, normal_map);
         Surface { p, p_error, ng, ns, uv, triangle: hit.triangle, params }
     }
@@ -68,6 +70,9 @@ pub struct NormalMap {
     /// The triangle's texture coordinates in the set the map reads; a tangent frame derived
     /// from the UV parameterisation (no `TANGENT` in the file) follows this set.
     pub uv: [Vec2; 3],
+    /// The triangle's tangents from the file ([`rtd_scene::Scene::tangents`]); all zero for
+    /// none.
+    pub tangents: [glam::Vec4; 3],
 }
 
 /// The unit shading normal at barycentrics `b`: interpolated vertex normals, perturbed by the
@@ -106,10 +111,10 @@ pub fn offset_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
 
 /// Perturbs the shading normal by a tangent-space normal map sample.
 fn apply_normal_map(t: &rtd_scene::Triangle, b: Vec3, ns: Vec3, map: NormalMap) -> Option<Vec3> {
-    let (tn, uv) = (map.value, map.uv);
-    let tangent4 = t.tangent[0] * b.x + t.tangent[1] * b.y + t.tangent[2] * b.z;
+    let (tn, uv, tg) = (map.value, map.uv, map.tangents);
+    let tangent4 = tg[0] * b.x + tg[1] * b.y + tg[2] * b.z;
     let (tangent, sign) = if tangent4.truncate().length_squared() > 0.0 {
-        (tangent4.truncate(), if t.tangent[0].w < 0.0 { -1.0 } else { 1.0 })
+        (tangent4.truncate(), if tg[0].w < 0.0 { -1.0 } else { 1.0 })
     } else {
         // No tangents in the file: derive dp/du from the UV parameterisation.
         let dp1 = t.p[1] - t.p[0];
@@ -146,15 +151,15 @@ mod tests {
             p: [Vec3::ZERO, Vec3::X, Vec3::Y],
             n: [Vec3::Z; 3],
             uv: [Vec2::ZERO, Vec2::X, Vec2::Y],
-            tangent: [glam::Vec4::ZERO; 3],
             material: 0,
         };
         let set1 = [Vec2::ZERO, Vec2::Y, Vec2::X];
         // A map value tilted towards +u must tilt the normal towards that set's dp/du.
         let value = Vec3::new(1.0, 0.0, 1.0).normalize();
         let b = Vec3::splat(1.0 / 3.0);
-        let n0 = shading_normal(&t, b, Vec3::Z, Some(NormalMap { value, uv: t.uv }));
-        let n1 = shading_normal(&t, b, Vec3::Z, Some(NormalMap { value, uv: set1 }));
+        let tangents = [glam::Vec4::ZERO; 3];
+        let n0 = shading_normal(&t, b, Vec3::Z, Some(NormalMap { value, uv: t.uv, tangents }));
+        let n1 = shading_normal(&t, b, Vec3::Z, Some(NormalMap { value, uv: set1, tangents }));
         assert!(n0.abs_diff_eq(value, 1e-5), "{n0}");
         assert!(n1.abs_diff_eq(Vec3::new(0.0, value.x, value.z), 1e-5), "{n1}");
     }

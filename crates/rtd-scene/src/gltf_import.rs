@@ -224,12 +224,12 @@ impl NodeVisitor<'_> {
                 p: t.map(|i| positions[i as usize]),
                 n: t.map(|i| attribute(&normals, i, Vec3::ZERO)),
                 uv: t.map(|i| attribute(&uvs, i, Vec2::ZERO)),
-                tangent: t.map(|i| attribute(&tangents, i, Vec4::ZERO)),
                 material,
             };
             let extras = TriangleExtras {
                 colors: colors.as_ref().map(|_| t.map(|i| attribute(&colors, i, Vec3::ONE))),
                 uv1: uv1.as_ref().map(|_| t.map(|i| attribute(&uv1, i, Vec2::ZERO))),
+                tangents: tangents.as_ref().map(|_| t.map(|i| attribute(&tangents, i, Vec4::ZERO))),
             };
             scene.push_triangle_with(triangle, extras);
         }

@@ -61,13 +61,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
                 scene.skipped_nonfinite += 1;
                 continue;
             }
-            scene.push_triangle(Triangle {
-                p: t.map(pos),
-                n: t.map(nrm),
-                uv: t.map(uv),
-                tangent: [Vec4::ZERO; 3],
-                material,
-            });
+            scene.push_triangle(Triangle { p: t.map(pos), n: t.map(nrm), uv: t.map(uv), material });
         }
     }
     scene.finish_load();

@@ -11,8 +11,6 @@ pub struct Triangle {
     pub n: [Vec3; 3],
     /// Texture coordinates (set 0) per vertex.
     pub uv: [Vec2; 3],
-    /// Tangents with handedness in w; all zero when the file gave none.
-    pub tangent: [Vec4; 3],
     /// Index into [`Scene::materials`].
     pub material: u32,
 }
@@ -71,6 +69,10 @@ pub struct Scene {
     /// whose `texCoord` is 1; empty when no texture reads that set. Triangles without the set
     /// repeat set 0. See [`Scene::tex_coords`].
     pub uv1: Vec<[Vec2; 3]>,
+    /// Tangents with handedness in w per triangle (glTF `TANGENT`), for normal maps; empty when
+    /// no mesh has them, which is most scenes (each row is 48 bytes a triangle). See
+    /// [`Scene::tangents`].
+    pub tangents: Vec<[Vec4; 3]>,
 }
 
 /// The attributes of a triangle that live in the [`Scene`]'s side tables (tables that exist only
@@ -81,6 +83,8 @@ pub struct TriangleExtras {
     pub colors: Option<[Vec3; 3]>,
     /// Texture coordinates of set 1 (None: the triangle's set 0).
     pub uv1: Option<[Vec2; 3]>,
+    /// Tangents with handedness in w (None: derived from the texture coordinates when needed).
+    pub tangents: Option<[Vec4; 3]>,
 }
 
 /// Appends `value` (or `default` when None) to a side table of `len - 1` earlier rows, creating
@@ -97,7 +101,7 @@ fn push_side<T: Copy>(table: &mut Vec<T>, len: usize, value: Option<T>, fill: im
 impl Scene {
     /// Adds a triangle after validation and returns whether it was kept. Triangles with non-finite
     /// positions or zero area are counted and dropped; missing or broken normals become the flat
-    /// normal, non-finite texture coordinates zero and non-finite tangents all zero.
+    /// normal and non-finite texture coordinates zero.
     pub fn push_triangle(&mut self, mut t: Triangle) -> bool {
         if !t.p.iter().all(|p| p.is_finite()) {
             self.skipped_nonfinite += 1;
@@ -119,16 +123,14 @@ impl Scene {
                 *uv = Vec2::ZERO;
             }
         }
-        if !t.tangent.iter().all(|v| v.is_finite()) {
-            t.tangent = [Vec4::ZERO; 3];
-        }
         self.triangles.push(t);
         true
     }
 
     /// [`Scene::push_triangle`] with the triangle's side-table attributes. Colours are kept only
     /// once some triangle has them (non-finite or negative values become 0), and likewise set 1
-    /// of the texture coordinates (non-finite values become 0).
+    /// of the texture coordinates (non-finite values become 0) and tangents (non-finite ones
+    /// become all zero, which means "derive them").
     pub fn push_triangle_with(&mut self, t: Triangle, extras: TriangleExtras) -> bool {
         if !self.push_triangle(t) {
             return false;
@@ -146,7 +148,16 @@ impl Scene {
         let own = self.triangles[len - 1].uv;
         let triangles = &self.triangles;
         push_side(&mut self.uv1, len, extras.uv1.map(|u| u.map(finite)), |i| triangles[i].uv, own);
+        let tangents =
+            extras.tangents.filter(|t| t.iter().all(|v| v.is_finite()) && t.iter().any(|v| *v != Vec4::ZERO));
+        push_side(&mut self.tangents, len, tangents, |_| [Vec4::ZERO; 3], [Vec4::ZERO; 3]);
         true
+    }
+
+    /// The tangents of triangle `tri` (all zero where the file gave none).
+    #[inline]
+    pub fn tangents(&self, tri: u32) -> [Vec4; 3] {
+        self.tangents.get(tri as usize).copied().unwrap_or([Vec4::ZERO; 3])
     }
 
     /// The vertex colour of triangle `tri` at barycentrics `b` (white without colours).
@@ -208,6 +219,17 @@ impl Scene {
         if self.materials.is_empty() {
             self.materials.push(Material::default());
         }
+    }
+
+    /// Bytes held on the heap by triangles, side tables, materials and textures (with mips).
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.triangles.as_slice())
+            + size_of_val(self.vertex_colors.as_slice())
+            + size_of_val(self.uv1.as_slice())
+            + size_of_val(self.tangents.as_slice())
+            + size_of_val(self.materials.as_slice())
+            + self.textures.iter().map(|t| t.heap_bytes()).sum::<usize>()
     }
 
     /// Bounds of all triangles.
@@ -281,7 +303,7 @@ mod tests {
     use super::*;
 
     fn tri(p: [Vec3; 3]) -> Triangle {
-        Triangle { p, n: [Vec3::ZERO; 3], uv: [Vec2::ZERO; 3], tangent: [Vec4::ZERO; 3], material: 0 }
+        Triangle { p, n: [Vec3::ZERO; 3], uv: [Vec2::ZERO; 3], material: 0 }
     }
 
     #[test]
@@ -294,5 +316,23 @@ mod tests {
         assert_eq!((s.triangles.len(), s.skipped_degenerate, s.skipped_nonfinite), (1, 1, 1));
         assert_eq!(s.triangles[0].n[0], Vec3::Z, "missing normals become flat normals");
         assert_eq!(s.warnings.len(), 2);
+    }
+
+    /// Tangents live in a side table that exists only once some triangle brings them: a scene
+    /// without them pays nothing per triangle, and rows before the first one read zero.
+    #[test]
+    fn tangents_are_a_side_table_kept_only_when_given() {
+        let mut s = Scene::default();
+        let t = || tri([Vec3::ZERO, Vec3::X, Vec3::Y]);
+        let none = TriangleExtras::default();
+        assert!(s.push_triangle_with(t(), none));
+        assert!(s.tangents.is_empty(), "no table without tangents");
+        let given = [Vec4::new(1.0, 0.0, 0.0, -1.0); 3];
+        assert!(s.push_triangle_with(t(), TriangleExtras { tangents: Some(given), ..none }));
+        let broken = [Vec4::splat(f32::NAN); 3];
+        assert!(s.push_triangle_with(t(), TriangleExtras { tangents: Some(broken), ..none }));
+        assert_eq!(s.tangents.len(), 3);
+        assert_eq!((s.tangents(0), s.tangents(1), s.tangents(2)), ([Vec4::ZERO; 3], given, [Vec4::ZERO; 3]));
+        assert_eq!(s.heap_bytes(), 3 * std::mem::size_of::<Triangle>() + 3 * 48);
     }
 }

@@ -118,6 +118,12 @@ fn reduce(w: u32, h: u32, texels: &[Vec4]) -> MipLevel {
 }
 
 impl Texture {
+    /// Bytes held by the texels and their mip levels.
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.texels.as_slice())
+            + self.mips.iter().map(|m| std::mem::size_of_val(m.texels.as_slice())).sum::<usize>()
+    }
+
     /// A texture from row-major texels (top row first), with its mip pyramid built.
     /// `texels.len()` must be `width × height`.
     pub fn new(width: u32, height: u32, texels: Vec<Vec4>, wrap_u: Wrap, wrap_v: Wrap, nearest: bool) -> Self {

@@ -205,6 +205,53 @@ pub enum BenchCommand {
     Suite(SuiteArgs),
     /// Render paths/s and rays/s, guide and denoise seconds per megapixel (medians of runs).
     Speed(SpeedArgs),
+    /// How load, BVH, memory, render, guide and denoise costs grow with triangles, lights,
+    /// resolution, texture size and spp, on generated scenes, each point in its own process.
+    Scaling(ScalingArgs),
+    /// Write the broader benchmark scene set (strands, fine textures, many small lights, an
+    /// instanced mesh, a glossy interior, flat walls) as glTF, for `rtd bench suite DIR` and
+    /// the other benchmarks.
+    Scenes(ScenesArgs),
+}
+
+/// `rtd bench scaling` options.
+#[derive(Debug, Clone, Args)]
+pub struct ScalingArgs {
+    /// Axes to measure (comma-separated: triangles, lights, resolution, texture, spp).
+    #[arg(long, value_delimiter = ',', default_value = "triangles,lights,resolution,texture,spp", value_parser = parse_axis)]
+    pub axes: Vec<rtd_bench::scaling::Axis>,
+    /// The first two values of each axis only.
+    #[arg(long)]
+    pub quick: bool,
+    /// Runs per figure.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub runs: u32,
+    /// Denoiser model (.bpk with its .json beside it) instead of the built-in one.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Output directory (scaling.json, scaling.md, scaling.png, and the generated scenes).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Measure one point (AXIS=VALUE) in this process and print it as JSON: what each point's
+    /// own process runs.
+    #[arg(long, hide = true)]
+    pub point: Option<String>,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+fn parse_axis(s: &str) -> Result<rtd_bench::scaling::Axis, String> {
+    rtd_bench::scaling::Axis::parse(s)
+        .ok_or_else(|| format!("unknown axis {s:?} (triangles, lights, resolution, texture, spp)"))
+}
+
+/// `rtd bench scenes` options.
+#[derive(Debug, Clone, Args)]
+pub struct ScenesArgs {
+    /// Output directory.
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// `rtd bench speed` options.

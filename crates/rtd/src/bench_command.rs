@@ -3,7 +3,9 @@
 use anyhow::Context;
 use rtd_pipeline::{CameraChoice, SceneView};
 
-use crate::args::{BenchArgs, BenchCommand, EtrtArgs, PipelineArgs, SpeedArgs, SuiteArgs, ValidationArgs};
+use crate::args::{
+    BenchArgs, BenchCommand, EtrtArgs, PipelineArgs, ScalingArgs, ScenesArgs, SpeedArgs, SuiteArgs, ValidationArgs,
+};
 use crate::output::warn_all;
 use crate::progress::TaskBar;
 use rtd_image::write_json;
@@ -15,7 +17,37 @@ pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Etrt(a) => etrt(a),
         BenchCommand::Suite(a) => suite(a),
         BenchCommand::Speed(a) => speed(a),
+        BenchCommand::Scaling(a) => scaling(a),
+        BenchCommand::Scenes(a) => scenes(a),
     }
+}
+
+fn scaling(args: &ScalingArgs) -> anyhow::Result<()> {
+    use rtd_bench::scaling::{measure_point, run_scaling, Axis};
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+    if let Some(point) = &args.point {
+        let (axis, value) = point.split_once('=').context("--point takes AXIS=VALUE")?;
+        let axis = Axis::parse(axis).with_context(|| format!("unknown axis {axis:?}"))?;
+        let value: u64 = value.parse().with_context(|| format!("--point: {value:?} is not a whole number"))?;
+        let model = crate::args::DenoiserArgs { model: args.model.clone(), ensemble: 1 }.load()?;
+        let p = measure_point(axis, value, &args.output, &model, args.runs as usize)?;
+        return crate::print_line(&serde_json::to_string(&p)?);
+    }
+    let exe = std::env::current_exe().context("cannot find the rtd executable to measure each point with")?;
+    let bar = TaskBar::new(args.quiet);
+    let report =
+        run_scaling(&exe, &args.axes, args.quick, args.runs as usize, args.model.as_deref(), &args.output, &bar);
+    bar.finish();
+    crate::print_line(&report?.markdown())?;
+    Ok(())
+}
+
+fn scenes(args: &ScenesArgs) -> anyhow::Result<()> {
+    for path in rtd_bench::procedural::write_families(&args.output)? {
+        crate::print_line(&path.display().to_string())?;
+    }
+    Ok(())
 }
 
 fn speed(args: &SpeedArgs) -> anyhow::Result<()> {

@@ -77,6 +77,9 @@ pub struct GenScene {
     pub textures: Vec<image::RgbImage>,
     /// Cameras (the dataset renders each as one view).
     pub cameras: Vec<GenCamera>,
+    /// More placements of objects' meshes: (object index, translation), each a glTF node that
+    /// instances the object's mesh.
+    pub instances: Vec<(usize, Vec3)>,
 }
 
 fn f32_bytes(out: &mut Vec<u8>, v: &[f32]) {
@@ -96,6 +99,9 @@ impl GenScene {
     pub fn write(&self, dir: &Path, name: &str) -> Result<(), TrainError> {
         std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
         let Geometry { bin, views, accessors, meshes, mut nodes } = self.geometry();
+        for (object, offset) in &self.instances {
+            nodes.push(json!({"mesh": object, "translation": offset.to_array()}));
+        }
         let cameras = self.cameras_json(&mut nodes);
         let materials = self.materials_json();
         let images = self.write_textures(dir, name)?;
