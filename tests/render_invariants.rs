@@ -153,6 +153,104 @@ fn the_near_clip_hides_what_lies_in_front_of_it() {
     assert!(guide(&walled, &cam) != guide(&scene, &cam));
 }
 
+/// A room lit by 60 small emitters of different powers, sides and colours, a point light, a
+/// spot, a sun and a sky: every kind of light the selectors handle.
+fn many_lights_room() -> (Scene, Camera) {
+    let mut s = Scene::default();
+    s.materials.push(material(Vec3::splat(0.6), 0.7, 0.0, 0.0));
+    // A rough metal: a glossier one reflects the delta lights into fireflies that no light
+    // selection can help (no MIS for a delta light).
+    s.materials.push(material(Vec3::new(0.8, 0.7, 0.5), 0.6, 1.0, 0.0));
+    let (lo, hi) = (Vec3::new(-4.0, 0.0, -4.0), Vec3::new(4.0, 3.0, 4.0));
+    quad(
+        &mut s,
+        Vec3::new(lo.x, 0.0, hi.z),
+        Vec3::new(hi.x, 0.0, hi.z),
+        Vec3::new(hi.x, 0.0, lo.z),
+        Vec3::new(lo.x, 0.0, lo.z),
+        0,
+    );
+    quad(
+        &mut s,
+        Vec3::new(lo.x, 0.0, lo.z),
+        Vec3::new(hi.x, 0.0, lo.z),
+        Vec3::new(hi.x, 3.0, lo.z),
+        Vec3::new(lo.x, 3.0, lo.z),
+        0,
+    );
+    sphere(&mut s, Vec3::new(0.5, 0.8, -1.0), 0.8, 1, 24, 12);
+    for i in 0..60 {
+        let mut m = material(Vec3::ZERO, 1.0, 0.0, 0.0);
+        m.emissive = Vec3::new(1.0 + (i % 3) as f32, 1.0 + (i % 5) as f32 * 0.5, 2.0) * (1.0 + (i % 7) as f32 * 3.0);
+        m.double_sided = i % 4 == 0;
+        s.materials.push(m);
+        let (x, z) = (-3.5 + (i % 10) as f32 * 0.75, -3.5 + (i / 10) as f32 * 1.2);
+        let (y, h) = (2.9, 0.12);
+        // Most face down; every fifth faces a wall.
+        let (a, b, c, d) = if i % 5 == 0 {
+            (Vec3::new(x, y - h, z), Vec3::new(x, y - h, z + h), Vec3::new(x, y, z + h), Vec3::new(x, y, z))
+        } else {
+            (Vec3::new(x, y, z), Vec3::new(x + h, y, z), Vec3::new(x + h, y, z + h), Vec3::new(x, y, z + h))
+        };
+        let m = s.materials.len() as u32 - 1;
+        quad(&mut s, a, b, c, d, m);
+    }
+    s.lights.push(Light::Point { position: Vec3::new(-2.0, 1.5, 1.0), intensity: Vec3::new(6.0, 4.0, 2.0) });
+    s.lights.push(Light::spot(
+        Vec3::new(2.0, 2.5, 2.0),
+        Vec3::new(-0.3, -1.0, -0.5).normalize(),
+        Vec3::splat(30.0),
+        0.3,
+        0.5,
+    ));
+    s.lights
+        .push(Light::Directional { direction: Vec3::new(0.3, -1.0, -0.2).normalize(), irradiance: Vec3::splat(0.5) });
+    s.environment = Environment::Constant(Vec3::new(0.05, 0.07, 0.1));
+    (s, Camera::look_at(Vec3::new(0.0, 1.6, 3.9), Vec3::new(0.0, 1.0, -2.0), 70.0))
+}
+
+/// The light tree and power-proportional selection are two ways to pick the same lights: both
+/// converge to the same image (means over the image and over 8×8 blocks agree within noise),
+/// and on this many-lights room the tree's median per-pixel variance at equal samples is lower.
+#[test]
+fn the_light_tree_converges_to_the_power_selections_image_with_less_noise() {
+    use rtd::render::LightSelection;
+    let (scene, cam) = many_lights_room();
+    let film = |selection| {
+        let prepared = RenderScene::with_light_selection(scene.clone(), selection);
+        let tracer = PathTracer::new(&prepared, cam.clone(), RenderSettings::new(32, 24).seed(8)).unwrap();
+        let mut f = tracer.film();
+        tracer.render(&mut f, 256).unwrap();
+        f
+    };
+    let (tree, power) = (film(LightSelection::Tree), film(LightSelection::Power));
+    let (a, b) = (tree.beauty(), power.beauty());
+    let (ma, mb) = (mean(&a.pixels), mean(&b.pixels));
+    assert!((ma / mb - 1.0).abs() < 0.02, "image means differ: tree {ma}, power {mb}");
+    // 8×8 blocks: 12 of them, each within 6% (their noise at 256 spp is a few percent).
+    for by in 0..3 {
+        for bx in 0..4 {
+            let block = |img: &rtd::image::HdrImage| {
+                let px: Vec<Vec3> = (0..8)
+                    .flat_map(|y| (0..8).map(move |x| (bx * 8 + x, by * 8 + y)))
+                    .map(|(x, y)| img.get(x, y))
+                    .collect();
+                mean(&px)
+            };
+            let (x, y) = (block(&a), block(&b));
+            assert!((x / y - 1.0).abs() < 0.06, "block ({bx}, {by}): tree {x}, power {y}");
+        }
+    }
+    // The median pixel's variance: the tree picks lights that matter where it is.
+    let median = |f: &Film| {
+        let mut v: Vec<f32> = f.variance().unwrap().pixels.iter().map(|p| p.x + p.y + p.z).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    let (nt, np) = (median(&tree), median(&power));
+    assert!(nt < 0.8 * np, "median variance: tree {nt} against power's {np}");
+}
+
 /// Root-mean-square difference of two images.
 fn rmse(a: &rtd::image::HdrImage, b: &rtd::image::HdrImage) -> f64 {
     let s: f64 = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (*x - *y).length_squared() as f64).sum();

@@ -218,12 +218,13 @@ impl SceneBvh {
 
     /// The traversal ray in BVH space, or None for unusable input.
     #[inline]
-    fn bvh_ray(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<BvhRay> {
+    fn bvh_ray(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<BvhRay> {
         if self.is_empty() || !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO || tmax.is_nan() {
             return None;
         }
         let o = origin * self.k;
-        o.is_finite().then(|| BvhRay::new(o.into(), dir.into(), 0.0, tmax * self.k))
+        let tmin = if tmin.is_finite() { tmin.max(0.0) } else { 0.0 };
+        o.is_finite().then(|| BvhRay::new(o.into(), dir.into(), tmin * self.k, tmax * self.k))
     }
 
     /// The traversal's test of BVH slot `slot` against ray `r` (scaled by `k`; `inv_k` = 1/k,
@@ -260,7 +261,22 @@ impl SceneBvh {
     /// the triangle is large next to the offset.
     #[inline]
     pub fn intersect_leaving(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32, from: u32) -> Option<Hit> {
-        let ray = self.bvh_ray(origin, dir, tmax)?;
+        self.intersect_within(scene, origin, dir, 0.0, tmax, from)
+    }
+
+    /// [`SceneBvh::intersect_leaving`] for t in (`tmin`, `tmax`): a camera ray clipped at the
+    /// near plane starts at the eye, and ignores what lies before `tmin`.
+    #[inline]
+    pub fn intersect_within(
+        &self,
+        scene: &Scene,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        from: u32,
+    ) -> Option<Hit> {
+        let ray = self.bvh_ray(origin, dir, tmin, tmax)?;
         let shear = RayShear::new(origin, dir);
         let inv_k = 1.0 / self.k;
         let mut hit = RayHit::none();
@@ -285,7 +301,7 @@ impl SceneBvh {
     /// (see [`SceneBvh::intersect_leaving`]).
     #[inline]
     pub fn occluded_leaving(&self, scene: &Scene, origin: Vec3, dir: Vec3, tmax: f32, from: u32) -> bool {
-        let Some(ray) = self.bvh_ray(origin, dir, tmax) else { return false };
+        let Some(ray) = self.bvh_ray(origin, dir, 0.0, tmax) else { return false };
         let shear = RayShear::new(origin, dir);
         let inv_k = 1.0 / self.k;
         !self.bvh.ray_traverse_miss(ray, |r, slot| self.slot_t(scene, &shear, r, slot, from, inv_k))

@@ -59,6 +59,12 @@ pub struct Integrator<'a> {
 impl Integrator<'_> {
     /// Traces one path from `origin` along unit `dir`.
     pub fn trace(&self, origin: Vec3, dir: Vec3, sampler: &mut Sampler) -> PathResult {
+        self.trace_clipped(origin, dir, 0.0, sampler)
+    }
+
+    /// [`Integrator::trace`] with the first ray seeing nothing nearer than `t_near` (the
+    /// camera's near clip).
+    pub fn trace_clipped(&self, origin: Vec3, dir: Vec3, t_near: f32, sampler: &mut Sampler) -> PathResult {
         let (scene, bvh, lights) = (self.scene, self.bvh, self.lights);
         let mut radiance = Vec3::ZERO;
         let mut beta = Vec3::ONE;
@@ -69,6 +75,8 @@ impl Integrator<'_> {
         let mut specular = true;
         let mut prev_pdf = 0.0f32;
         let mut prev_p = origin;
+        // The normal light selection weighed the lights by at the previous vertex.
+        let mut prev_n = Vec3::ZERO;
         // The triangle the ray leaves (none for the camera ray).
         let mut leaving = NO_TRIANGLE;
         // Absorption coefficient of the medium the path is travelling in (zero: none).
@@ -76,7 +84,8 @@ impl Integrator<'_> {
         let mut depth = 0u32;
         loop {
             rays += 1;
-            let Some(hit) = bvh.intersect_leaving(scene, o, d, f32::INFINITY, leaving) else {
+            let t_min = if depth == 0 { t_near } else { 0.0 };
+            let Some(hit) = bvh.intersect_within(scene, o, d, t_min, f32::INFINITY, leaving) else {
                 // A camera ray that escapes sees the environment: a light, white in the albedo
                 // AOV as emitters are (see `Material::albedo`), unless the environment is black.
                 if depth == 0 && lights.has_environment() {
@@ -110,7 +119,8 @@ impl Integrator<'_> {
                     // Area-to-solid-angle pdf of having sampled this point by light sampling.
                     let area = scene.triangles[hit.triangle as usize].area();
                     let dist2 = (s.p - prev_p).length_squared();
-                    let pdf_light = lights.triangle_pmf(hit.triangle) * dist2 / (wo.dot(s.ng).abs() * area);
+                    let pmf = lights.triangle_pmf(prev_p, prev_n, hit.triangle);
+                    let pdf_light = pmf * dist2 / (wo.dot(s.ng).abs() * area);
                     power_heuristic(prev_pdf, pdf_light)
                 };
                 radiance += beta * s.params.emission * w;
@@ -145,7 +155,7 @@ impl Integrator<'_> {
             let u_select = sampler.get_1d();
             let u_light = sampler.get_2d();
             if bsdf.has_non_delta() {
-                if let Some(ls) = lights.sample(scene, s.p, u_select, u_light) {
+                if let Some(ls) = lights.sample(scene, s.p, s.ng, u_select, u_light) {
                     let wi_l = frame.to_local(ls.wi);
                     if ls.pdf > 0.0 && ls.li != Vec3::ZERO && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l) {
                         let (f, bsdf_pdf) = bsdf.eval(wo_l, wi_l);
@@ -194,6 +204,7 @@ impl Integrator<'_> {
             specular = bs.delta;
             prev_pdf = bs.pdf;
             prev_p = s.p;
+            prev_n = s.ng;
             leaving = s.triangle;
             o = s.spawn_origin(wi);
             d = wi;

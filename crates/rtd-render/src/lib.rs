@@ -12,6 +12,7 @@ pub mod bvh;
 pub mod energy;
 mod film;
 pub mod integrator;
+pub mod light_tree;
 pub mod lights;
 pub mod microfacet;
 mod render;
@@ -23,7 +24,7 @@ pub mod surface;
 pub use bsdf::{Bsdf, BsdfParams, BsdfSample};
 pub use bvh::{SceneBvh, MAX_BUNDLE, NO_TRIANGLE};
 pub use film::{Film, FilmMergeError, SAMPLE_QUANTUM};
-pub use lights::LightSet;
+pub use lights::{LightSelection, LightSet};
 pub use render::{PathTracer, RenderScene, RenderSettings, RenderStats, Workers, MAX_DEPTH, MAX_SPP, SPP_LADDER};
 pub use sampler::Sampler;
 

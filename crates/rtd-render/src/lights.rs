@@ -1,7 +1,12 @@
-//! Every light in the scene as one closed set, chosen in proportion to its power.
+//! Every light in the scene as one closed set, and how a shading point picks one.
 //!
-//! Emissive triangles are sampled uniformly by area; point, spot and directional lights are
-//! deltas; the environment is sampled uniformly (constant) or by a luminance × sinθ
+//! [`LightSelection::Tree`] (the default) walks a light BVH ([`crate::light_tree`]) over the
+//! lights with a position (emissive triangles, point and spot lights), by their power,
+//! distance and orientation as seen from the point; the lights at infinity (the sun,
+//! directional lights, the environment) are chosen by power against the tree's total.
+//! [`LightSelection::Power`] picks every light in proportion to its power alone, wherever the
+//! point is. Emissive triangles are sampled uniformly by area; point, spot and directional
+//! lights are deltas; the environment is sampled uniformly (constant) or by a luminance × sinθ
 //! piecewise-constant distribution over the equirectangular map.
 
 use glam::{Vec2, Vec3};
@@ -9,6 +14,7 @@ use std::f32::consts::PI;
 
 use rtd_scene::{EnvMap, Environment, Light, Scene};
 
+use crate::light_tree::{LightBounds, LightTree};
 use crate::sampling::{sample_triangle, sample_uniform_sphere, Distribution1D};
 use rtd_image::luminance;
 
@@ -45,11 +51,43 @@ struct EnvDistribution {
     marginal: Distribution1D,
 }
 
-/// The scene's lights with a power-proportional selection distribution.
+/// How a shading point picks the light it samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LightSelection {
+    /// A light BVH by power, distance and orientation (lights at infinity by power).
+    #[default]
+    Tree,
+    /// In proportion to power alone.
+    Power,
+}
+
+/// The selection structure of a [`LightSet`].
+#[derive(Debug, Clone)]
+enum Selector {
+    /// One distribution over all lights by power.
+    Power(Distribution1D),
+    /// The tree over the lights with a position, and a power distribution over those at
+    /// infinity, chosen first with probability `p_infinite`.
+    Tree {
+        tree: LightTree,
+        /// The bounded lights by power, the defensive share of the tree's choice.
+        by_power: Distribution1D,
+        /// Light index of each tree entry.
+        bounded: Vec<u32>,
+        /// Tree entry of each light (u32::MAX for lights at infinity).
+        entry: Vec<u32>,
+        /// Light index of each entry of `infinite_select`.
+        infinite: Vec<u32>,
+        infinite_select: Distribution1D,
+        p_infinite: f32,
+    },
+}
+
+/// The scene's lights and how a shading point selects among them.
 #[derive(Debug, Clone)]
 pub struct LightSet {
     lights: Vec<LightSource>,
-    select: Distribution1D,
+    selector: Selector,
     /// Light index of each triangle, or u32::MAX for non-emitters.
     tri_light: Vec<u32>,
     env_index: Option<u32>,
@@ -68,12 +106,20 @@ pub fn triangle_emission(scene: &Scene, tri: u32, b: Vec3) -> Vec3 {
 }
 
 impl LightSet {
-    /// Collects the lights of `scene` (including its environment unless black).
+    /// Collects the lights of `scene` (including its environment unless black), selected by
+    /// the light tree.
     pub fn new(scene: &Scene) -> Self {
+        Self::with_selection(scene, LightSelection::Tree)
+    }
+
+    /// Collects the lights of `scene`, selected as `selection` says.
+    pub fn with_selection(scene: &Scene, selection: LightSelection) -> Self {
         let bounds = scene.bounds();
         let scene_radius = if bounds.is_empty() { 1.0 } else { (bounds.diagonal().length() * 0.5).max(1e-6) };
         let mut lights = Vec::new();
         let mut power = Vec::new();
+        // Bounds of each light with a position, for the tree (None: a light at infinity).
+        let mut bounds: Vec<Option<LightBounds>> = Vec::new();
         let mut tri_light = vec![u32::MAX; scene.triangles.len()];
         for (i, t) in scene.triangles.iter().enumerate() {
             let m = &scene.materials[t.material as usize];
@@ -91,6 +137,7 @@ impl LightSet {
                 tri_light[i] = lights.len() as u32;
                 lights.push(LightSource::Triangle(i as u32));
                 power.push(p);
+                bounds.push(Some(LightBounds::triangle(t.p, t.front_normal(), p, m.double_sided)));
             }
         }
         for l in &scene.lights {
@@ -105,6 +152,13 @@ impl LightSet {
             if p > 0.0 && p.is_finite() {
                 lights.push(LightSource::Punctual(*l));
                 power.push(p);
+                bounds.push(match *l {
+                    Light::Point { position, .. } => Some(LightBounds::point(position, Vec3::Z, -1.0, p)),
+                    Light::Spot { position, direction, cos_outer, .. } => {
+                        Some(LightBounds::point(position, direction, cos_outer, p))
+                    }
+                    Light::Directional { .. } => None,
+                });
             }
         }
         let mut env_index = None;
@@ -125,9 +179,60 @@ impl LightSet {
                 env_index = Some(lights.len() as u32);
                 lights.push(LightSource::Environment);
                 power.push(p);
+                bounds.push(None);
             }
         }
-        LightSet { select: Distribution1D::new(&power), lights, tri_light, env_index, env_dist }
+        let selector = match selection {
+            LightSelection::Power => Selector::Power(Distribution1D::new(&power)),
+            LightSelection::Tree => tree_selector(&power, &bounds),
+        };
+        LightSet { selector, lights, tri_light, env_index, env_dist }
+    }
+
+    /// The probability that a point at `p` with normal `n` selects light `i`.
+    #[inline]
+    fn pmf(&self, p: Vec3, n: Vec3, i: u32) -> f32 {
+        match &self.selector {
+            Selector::Power(d) => d.pmf(i as usize),
+            Selector::Tree { tree, by_power, entry, infinite, infinite_select, p_infinite, .. } => {
+                match entry[i as usize] {
+                    u32::MAX => {
+                        let k = infinite.iter().position(|&j| j == i).unwrap_or(0);
+                        p_infinite * infinite_select.pmf(k)
+                    }
+                    e => {
+                        let mixed = (1.0 - DEFENSIVE) * tree.pmf(p, n, e) + DEFENSIVE * by_power.pmf(e as usize);
+                        (1.0 - p_infinite) * mixed
+                    }
+                }
+            }
+        }
+    }
+
+    /// Picks a light for a point at `p` with normal `n` with `u` in [0, 1): (light, probability).
+    #[inline]
+    fn select(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32)> {
+        match &self.selector {
+            Selector::Power(d) => {
+                let (i, pmf, _) = d.sample_discrete(u);
+                Some((i, pmf))
+            }
+            Selector::Tree { tree, by_power, bounded, infinite, infinite_select, p_infinite, .. } => {
+                if u < *p_infinite {
+                    let (k, pmf, _) = infinite_select.sample_discrete((u / p_infinite).min(ONE_MINUS_EPSILON));
+                    return Some((infinite[k] as usize, p_infinite * pmf));
+                }
+                let u = ((u - p_infinite) / (1.0 - p_infinite)).min(ONE_MINUS_EPSILON);
+                // Either strategy may pick a light: the probability is their mixture.
+                let e = if u < DEFENSIVE {
+                    by_power.sample_discrete((u / DEFENSIVE).min(ONE_MINUS_EPSILON)).0 as u32
+                } else {
+                    tree.sample(p, n, ((u - DEFENSIVE) / (1.0 - DEFENSIVE)).min(ONE_MINUS_EPSILON))?.0
+                };
+                let mixed = (1.0 - DEFENSIVE) * tree.pmf(p, n, e) + DEFENSIVE * by_power.pmf(e as usize);
+                Some((bounded[e as usize] as usize, (1.0 - p_infinite) * mixed))
+            }
+        }
     }
 
     /// Number of lights.
@@ -140,11 +245,12 @@ impl LightSet {
         self.lights.is_empty()
     }
 
-    /// Selection probability of the light on triangle `tri` (0 if it is not a light).
+    /// Selection probability, at a point `p` with normal `n` (the one [`LightSet::sample`] was
+    /// given there), of the light on triangle `tri` (0 if it is not a light).
     #[inline]
-    pub fn triangle_pmf(&self, tri: u32) -> f32 {
+    pub fn triangle_pmf(&self, p: Vec3, n: Vec3, tri: u32) -> f32 {
         match self.tri_light.get(tri as usize) {
-            Some(&i) if i != u32::MAX => self.select.pmf(i as usize),
+            Some(&i) if i != u32::MAX => self.pmf(p, n, i),
             _ => 0.0,
         }
     }
@@ -158,20 +264,22 @@ impl LightSet {
     #[inline]
     pub fn environment_pdf(&self, env: &Environment, dir: Vec3) -> f32 {
         let Some(i) = self.env_index else { return 0.0 };
-        let sel = self.select.pmf(i as usize);
+        // Lights at infinity are selected independently of the point.
+        let sel = self.pmf(Vec3::ZERO, Vec3::ZERO, i);
         match (env, &self.env_dist) {
             (Environment::Map(map), Some(d)) => sel * env_map_pdf(d, map, dir),
             _ => sel / (4.0 * PI),
         }
     }
 
-    /// Samples a light and a point on it as seen from `p`.
-    pub fn sample(&self, scene: &Scene, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
+    /// Samples a light and a point on it as seen from `p`, a point with normal `n` (zero for
+    /// none), which the light tree weighs lights by.
+    pub fn sample(&self, scene: &Scene, p: Vec3, n: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
         if self.lights.is_empty() {
             return None;
         }
-        let (i, sel, _) = self.select.sample_discrete(u_select);
-        if sel <= 0.0 {
+        let (i, sel) = self.select(p, n, u_select)?;
+        if !(sel > 0.0) {
             return None;
         }
         match self.lights[i] {
@@ -206,6 +314,48 @@ impl LightSet {
                 Some(LightSample { wi, li, pdf: sel * pdf_dir, point: None, delta: false })
             }
         }
+    }
+}
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// The share of the bounded lights' selection made by power alone beside the tree (defensive
+/// importance sampling): the tree's importance is a heuristic that can rate a light far below
+/// what it gives a point, and this keeps every light's probability at least this share of its
+/// power's, which bounds the noise such a light can add.
+const DEFENSIVE: f32 = 0.1;
+
+/// The tree selector over lights of `power`, with `bounds` for those with a position.
+fn tree_selector(power: &[f32], bounds: &[Option<LightBounds>]) -> Selector {
+    let (mut bounded, mut entry, mut infinite) = (vec![], vec![u32::MAX; power.len()], vec![]);
+    let mut tree_bounds = vec![];
+    for (i, b) in bounds.iter().enumerate() {
+        match b {
+            Some(b) => {
+                entry[i] = bounded.len() as u32;
+                bounded.push(i as u32);
+                tree_bounds.push(*b);
+            }
+            None => infinite.push(i as u32),
+        }
+    }
+    let infinite_power: Vec<f32> = infinite.iter().map(|&i| power[i as usize]).collect();
+    let (p_inf, p_tree) = (infinite_power.iter().sum::<f32>(), tree_bounds.iter().map(|b| b.phi).sum::<f32>());
+    // The lights at infinity against the tree's total, by power.
+    let p_infinite = match (infinite.is_empty(), tree_bounds.is_empty()) {
+        (true, _) => 0.0,
+        (false, true) => 1.0,
+        (false, false) => p_inf / (p_inf + p_tree),
+    };
+    Selector::Tree {
+        by_power: Distribution1D::new(&tree_bounds.iter().map(|b| b.phi).collect::<Vec<_>>()),
+        tree: LightTree::new(&tree_bounds),
+        bounded,
+        entry,
+        infinite,
+        infinite_select: Distribution1D::new(&infinite_power),
+        p_infinite,
     }
 }
 

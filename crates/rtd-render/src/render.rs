@@ -11,7 +11,7 @@ use rtd_scene::{Camera, Scene};
 use crate::bvh::SceneBvh;
 use crate::film::{quantize, quantize3, quantize_square, Film};
 use crate::integrator::Integrator;
-use crate::lights::LightSet;
+use crate::lights::{LightSelection, LightSet};
 use crate::sampler::Sampler;
 use crate::sampling::sample_tent;
 use crate::RenderError;
@@ -36,12 +36,17 @@ pub struct RenderScene {
 }
 
 impl RenderScene {
-    /// Builds the BVH and light set.
+    /// Builds the BVH and light set (lights selected by the light tree).
     pub fn new(scene: Scene) -> Self {
+        Self::with_light_selection(scene, LightSelection::Tree)
+    }
+
+    /// Builds the BVH and light set, lights selected as `selection` says.
+    pub fn with_light_selection(scene: Scene, selection: LightSelection) -> Self {
         let t = Instant::now();
         let bvh = SceneBvh::build(&scene);
         let bvh_seconds = t.elapsed().as_secs_f64();
-        let lights = LightSet::new(&scene);
+        let lights = LightSet::with_selection(&scene, selection);
         RenderScene { scene, bvh, lights, bvh_seconds }
     }
 }
@@ -291,13 +296,8 @@ impl<'a> PathTracer<'a> {
                     let u = sampler.get_2d();
                     let film_pos = Vec2::new(x as f32 + 0.5 + sample_tent(u.x), y as f32 + 0.5 + sample_tent(u.y));
                     let (o, d) = self.camera.ray(film_pos, w, h);
-                    // The near clip: the camera ray starts on its plane; depth stays the
-                    // distance from the eye.
-                    let clip = self.camera.clip_distance(d);
-                    let mut r = integrator.trace(o + d * clip, d, &mut sampler);
-                    if r.aov.depth > 0.0 {
-                        r.aov.depth += clip;
-                    }
+                    // The near clip: the camera ray sees nothing before its plane.
+                    let r = integrator.trace_clipped(o, d, self.camera.clip_distance(d), &mut sampler);
                     row_rays += r.rays as u64;
                     let mut l = r.radiance;
                     if !l.is_finite() {
