@@ -8,6 +8,7 @@
 mod error;
 pub mod etrt;
 pub mod figures;
+pub mod light_selection;
 pub mod procedural;
 pub mod report_files;
 pub mod scaling;

@@ -21,8 +21,11 @@ pub enum Family {
     Strands,
     /// Walls and floor covered in 1024² textures of fine checkers and noise, repeated.
     FineTextures,
-    /// 1,024 small coloured emitters and no other light.
+    /// 1,024 small coloured emitters and no other light, on the ceiling of a 10 m room.
     ManySmallLights,
+    /// 1,024 small coloured emitters spread over the ceiling of an 80 m hall, where most are
+    /// far from any one point.
+    LightHall,
     /// One 65k-triangle displaced mesh placed 16 times (a million triangles once flattened).
     InstancedMesh,
     /// Glossy walls, floor and objects (roughness 0.05–0.3).
@@ -33,10 +36,11 @@ pub enum Family {
 
 impl Family {
     /// Every family, in report order.
-    pub const ALL: [Family; 6] = [
+    pub const ALL: [Family; 7] = [
         Family::Strands,
         Family::FineTextures,
         Family::ManySmallLights,
+        Family::LightHall,
         Family::InstancedMesh,
         Family::GlossyInterior,
         Family::FlatWalls,
@@ -48,6 +52,7 @@ impl Family {
             Family::Strands => "strands",
             Family::FineTextures => "fine-textures",
             Family::ManySmallLights => "many-small-lights",
+            Family::LightHall => "light-hall",
             Family::InstancedMesh => "instanced-mesh",
             Family::GlossyInterior => "glossy-interior",
             Family::FlatWalls => "flat-walls",
@@ -61,6 +66,7 @@ impl Family {
             Family::Strands => strands(&mut rng),
             Family::FineTextures => fine_textures(&mut rng),
             Family::ManySmallLights => room_with_lights(&mut rng, 1024, false),
+            Family::LightHall => light_hall(&mut rng),
             Family::InstancedMesh => instanced(&mut rng),
             Family::GlossyInterior => glossy(&mut rng),
             Family::FlatWalls => flat_walls(),
@@ -153,6 +159,28 @@ pub fn room_with_lights(rng: &mut ChaCha8Rng, count: usize, walls: bool) -> GenS
             )
         };
         s.objects.push((quad, m));
+    }
+    s
+}
+
+fn light_hall(rng: &mut ChaCha8Rng) -> GenScene {
+    let mut s = GenScene::default();
+    let m = material(&mut s, GenMaterial::diffuse(Vec3::splat(0.7)));
+    s.objects.push((Mesh::cuboid(Vec3::new(0.0, 2.0, 0.0), Vec3::new(40.0, 2.0, 40.0), Mat3::IDENTITY, true, 4.0), m));
+    s.cameras.push(GenCamera { from: Vec3::new(0.0, 1.8, 30.0), at: Vec3::new(0.0, 1.0, 20.0), yfov_degrees: 60.0 });
+    let (y, h) = (3.99, 0.1);
+    for i in 0..1024 {
+        let colour = Vec3::new(rng.random_range(0.3..1.0), rng.random_range(0.3..1.0), rng.random_range(0.3..1.0));
+        let e = material(&mut s, emitter(colour, 40.0));
+        let (x, z) = (-38.0 + 76.0 * ((i % 32) as f32 + 0.5) / 32.0, -38.0 + 76.0 * ((i / 32) as f32 + 0.5) / 32.0);
+        let quad = Mesh::quad(
+            Vec3::new(x - h, y, z - h),
+            Vec3::new(x + h, y, z - h),
+            Vec3::new(x + h, y, z + h),
+            Vec3::new(x - h, y, z + h),
+            1.0,
+        );
+        s.objects.push((quad, e));
     }
     s
 }
@@ -315,7 +343,7 @@ mod tests {
             let tris = scene.triangles.len();
             match family {
                 Family::InstancedMesh => assert!(tris > 1_000_000, "{tris}"),
-                Family::ManySmallLights => assert_eq!(scene.emissive_triangle_count(), 2048),
+                Family::ManySmallLights | Family::LightHall => assert_eq!(scene.emissive_triangle_count(), 2048),
                 Family::Strands => assert!((1000..5000).contains(&tris), "{tris}"),
                 _ => assert!(tris > 12, "{tris}"),
             }

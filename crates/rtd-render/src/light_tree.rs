@@ -173,11 +173,78 @@ fn cone_union(a: (Vec3, f32), b: (Vec3, f32)) -> (Vec3, f32) {
     (w.normalize(), theta_o.cos())
 }
 
+/// A node's bounds in the form [`NodeBounds::importance`] reads, with what it derives from
+/// them worked out once at build time.
+#[derive(Clone, Copy, Debug)]
+struct NodeBounds {
+    centre: Vec3,
+    /// Squared radius of the box's bounding sphere.
+    radius2: f32,
+    /// Half the box's diagonal: the least distance² the importance assumes (as pbrt does).
+    half_diagonal: f32,
+    w: Vec3,
+    phi: f32,
+    cos_o: f32,
+    sin_o: f32,
+    cos_e: f32,
+    two_sided: bool,
+}
+
+impl NodeBounds {
+    fn new(b: &LightBounds) -> Self {
+        let diagonal = b.hi - b.lo;
+        NodeBounds {
+            centre: b.centre(),
+            radius2: diagonal.length_squared() * 0.25,
+            half_diagonal: diagonal.length() * 0.5,
+            w: b.w,
+            phi: b.phi,
+            cos_o: b.cos_o,
+            sin_o: sin_of(b.cos_o),
+            cos_e: b.cos_e,
+            two_sided: b.two_sided,
+        }
+    }
+
+    /// [`LightBounds::importance`], the same arithmetic on the precomputed values.
+    #[inline]
+    fn importance(&self, p: Vec3, n: Vec3) -> f32 {
+        let to_p = p - self.centre;
+        let dist2 = to_p.length_squared();
+        let d2 = dist2.max(self.half_diagonal);
+        let wi = if dist2 > 0.0 { to_p / dist2.sqrt() } else { Vec3::ZERO };
+        let mut cos_w = self.w.dot(wi);
+        if self.two_sided {
+            cos_w = cos_w.abs();
+        }
+        let sin_w = sin_of(cos_w);
+        // The half angle the box subtends from p (all directions from inside its sphere).
+        let (cos_b, sin_b) = if dist2 < self.radius2 {
+            (-1.0, 0.0)
+        } else {
+            let s2 = self.radius2 / dist2;
+            ((1.0 - s2).max(0.0).sqrt(), s2.sqrt())
+        };
+        let cos_x = cos_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
+        let sin_x = sin_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
+        let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+        if cos_p <= self.cos_e {
+            return 0.0;
+        }
+        let mut importance = self.phi * cos_p / d2;
+        if n != Vec3::ZERO {
+            let cos_i = wi.dot(n).abs();
+            importance *= cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b);
+        }
+        importance.max(0.0)
+    }
+}
+
 /// A node: its bounds, and either two children (the first right after it, the second at
-/// `second`) or one light.
+/// `index`) or one light (`index`).
 #[derive(Clone, Copy, Debug)]
 struct Node {
-    bounds: LightBounds,
+    bounds: NodeBounds,
     /// Index of the second child (interior), or of the light (leaf).
     index: u32,
     leaf: bool,
@@ -217,18 +284,18 @@ impl LightTree {
         let at = self.nodes.len();
         if let [i] = items {
             self.trail[*i as usize] = (bits, depth);
-            self.nodes.push(Node { bounds: lights[*i as usize], index: *i, leaf: true });
+            self.nodes.push(Node { bounds: NodeBounds::new(&lights[*i as usize]), index: *i, leaf: true });
             return lights[*i as usize];
         }
         // Past 32 levels the lights are split in halves, so no trail outgrows its 64 bits.
         let split = if depth < 32 { split(lights, items) } else { items.len() / 2 };
-        self.nodes.push(Node { bounds: lights[items[0] as usize], index: 0, leaf: false });
+        self.nodes.push(Node { bounds: NodeBounds::new(&lights[items[0] as usize]), index: 0, leaf: false });
         let (left, right) = items.split_at_mut(split);
         let a = self.build(lights, left, bits, depth + 1);
         let second = self.nodes.len() as u32;
         let b = self.build(lights, right, bits | (1 << depth), depth + 1);
         let bounds = a.union(&b);
-        self.nodes[at] = Node { bounds, index: second, leaf: false };
+        self.nodes[at] = Node { bounds: NodeBounds::new(&bounds), index: second, leaf: false };
         bounds
     }
 

@@ -223,13 +223,15 @@ impl LightSet {
                     return Some((infinite[k] as usize, p_infinite * pmf));
                 }
                 let u = ((u - p_infinite) / (1.0 - p_infinite)).min(ONE_MINUS_EPSILON);
-                // Either strategy may pick a light: the probability is their mixture.
-                let e = if u < DEFENSIVE {
-                    by_power.sample_discrete((u / DEFENSIVE).min(ONE_MINUS_EPSILON)).0 as u32
+                // Either strategy may pick a light: the probability is their mixture (the
+                // tree's share known from its walk, or walked for the light power picked).
+                let (e, tree_pmf) = if u < DEFENSIVE {
+                    let e = by_power.sample_discrete((u / DEFENSIVE).min(ONE_MINUS_EPSILON)).0 as u32;
+                    (e, tree.pmf(p, n, e))
                 } else {
-                    tree.sample(p, n, ((u - DEFENSIVE) / (1.0 - DEFENSIVE)).min(ONE_MINUS_EPSILON))?.0
+                    tree.sample(p, n, ((u - DEFENSIVE) / (1.0 - DEFENSIVE)).min(ONE_MINUS_EPSILON))?
                 };
-                let mixed = (1.0 - DEFENSIVE) * tree.pmf(p, n, e) + DEFENSIVE * by_power.pmf(e as usize);
+                let mixed = (1.0 - DEFENSIVE) * tree_pmf + DEFENSIVE * by_power.pmf(e as usize);
                 Some((bounded[e as usize] as usize, (1.0 - p_infinite) * mixed))
             }
         }

@@ -208,6 +208,10 @@ pub enum BenchCommand {
     /// How load, BVH, memory, render, guide and denoise costs grow with triangles, lights,
     /// resolution, texture size and spp, on generated scenes, each point in its own process.
     Scaling(ScalingArgs),
+    /// The light tree against power-proportional light selection at equal time, scored
+    /// against one reference (default: the generated 10 m room and 80 m hall of 1,024 small
+    /// lights each).
+    Lights(LightsArgs),
     /// Write the broader benchmark scene set (strands, fine textures, many small lights, an
     /// instanced mesh, a glossy interior, flat walls) as glTF, for `rtd bench suite DIR` and
     /// the other benchmarks.
@@ -244,6 +248,29 @@ pub struct ScalingArgs {
 fn parse_axis(s: &str) -> Result<rtd_bench::scaling::Axis, String> {
     rtd_bench::scaling::Axis::parse(s)
         .ok_or_else(|| format!("unknown axis {s:?} (triangles, lights, resolution, texture, spp)"))
+}
+
+/// `rtd bench lights` options.
+#[derive(Debug, Clone, Args)]
+pub struct LightsArgs {
+    /// Scene file (default: the broader set's many-small-lights room and light hall, written
+    /// into the output directory).
+    pub scene: Option<PathBuf>,
+    /// Seconds each strategy renders for.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Reference samples per pixel.
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..=1 << 20))]
+    pub reference_spp: u32,
+    /// Image width.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
+    pub height: u32,
+    /// Output directory (report.json, report.md).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// `rtd bench scenes` options.

@@ -4,7 +4,8 @@ use anyhow::Context;
 use rtd_pipeline::{CameraChoice, SceneView};
 
 use crate::args::{
-    BenchArgs, BenchCommand, EtrtArgs, PipelineArgs, ScalingArgs, ScenesArgs, SpeedArgs, SuiteArgs, ValidationArgs,
+    BenchArgs, BenchCommand, EtrtArgs, LightsArgs, PipelineArgs, ScalingArgs, ScenesArgs, SpeedArgs, SuiteArgs,
+    ValidationArgs,
 };
 use crate::output::warn_all;
 use crate::progress::TaskBar;
@@ -19,7 +20,43 @@ pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Speed(a) => speed(a),
         BenchCommand::Scaling(a) => scaling(a),
         BenchCommand::Scenes(a) => scenes(a),
+        BenchCommand::Lights(a) => lights(a),
     }
+}
+
+fn lights(args: &LightsArgs) -> anyhow::Result<()> {
+    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
+        anyhow::bail!("--seconds {} is not a positive number of seconds", args.seconds);
+    }
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+    use rtd_bench::procedural::{write_scene, Family};
+    let scenes = match &args.scene {
+        Some(p) => vec![p.clone()],
+        None => [Family::ManySmallLights, Family::LightHall]
+            .iter()
+            .map(|f| write_scene(&args.output.join("scenes"), f.name(), &f.scene()))
+            .collect::<Result<_, _>>()?,
+    };
+    let mut md = String::new();
+    let mut reports = vec![];
+    for path in scenes {
+        let view = load_first_camera(&path)?;
+        let size = (args.width, args.height);
+        let report = rtd_bench::light_selection::compare_light_selection(
+            &view.scene.scene,
+            &view.camera,
+            size,
+            args.seconds,
+            args.reference_spp,
+        )?;
+        md += &format!("## {}\n\n{}\n", path.display(), report.markdown());
+        reports.push(report);
+    }
+    write_json(&args.output.join("report.json"), &reports)?;
+    rtd_image::write_bytes_atomic(&args.output.join("report.md"), md.as_bytes())?;
+    crate::print_line(&md)?;
+    Ok(())
 }
 
 fn scaling(args: &ScalingArgs) -> anyhow::Result<()> {
