@@ -89,14 +89,15 @@ fn emission_of_1e9_scales_the_image_linearly() {
 }
 
 #[test]
-fn roughness_0_and_1_with_ior_1_and_4_keep_a_furnace_at_or_below_one() {
+fn roughness_0_and_1_with_ior_1_and_4_keep_a_white_furnace_at_one() {
     // Expectation: in a white furnace (environment 1) a sphere of any of these materials
     // reflects and transmits at most what arrives: the image mean is finite and ≤ 1 + noise.
-    // White opaque ones, plastic or metal, keep all of it at any roughness (the layering and
-    // the multiple-scattering term): the mean is 1 within noise and the tables' 1%. Rough glass
-    // is not compensated yet and only holds to ≤ 1.
+    // White ones keep all of it at any roughness: opaque plastic and metal through the layering
+    // and the multiple-scattering term, glass through its albedo compensation: the mean is 1
+    // within noise and the tables' 2% (rough glass of IOR 1.5 keeps 0.994), except rough glass
+    // of IOR 4 (below; it kept 0.40 before the compensation).
     for roughness in [0.0, 1.0] {
-        for ior in [1.0, 4.0] {
+        for ior in [1.0, 1.5, 4.0] {
             for (metallic, transmission) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
                 let mut scene = furnace(1.0);
                 scene
@@ -104,16 +105,17 @@ fn roughness_0_and_1_with_ior_1_and_4_keep_a_furnace_at_or_below_one() {
                     .push(rtd::scene::Material { ior, ..material(Vec3::ONE, roughness, metallic, transmission) });
                 sphere(&mut scene, Vec3::ZERO, 1.0, 0, 48, 24);
                 let cam = Camera::look_at(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 30.0);
-                let film = render(scene, cam, RenderSettings::new(16, 16).seed(5).threads(Some(1)), 64);
+                let film = render(scene, cam, RenderSettings::new(16, 16).seed(5).threads(Some(1)).max_depth(200), 64);
                 let m = mean(&film.beauty().pixels);
                 let what =
                     format!("roughness {roughness}, IOR {ior}, metallic {metallic}, transmission {transmission}");
                 assert!(m.is_finite() && film.nonfinite_samples == 0, "{what}: non-finite");
                 eprintln!("{what}: furnace mean {m:.4}");
                 assert!(m <= 1.02, "{what}: furnace mean {m} > 1");
-                if transmission == 0.0 {
-                    assert!(m >= 0.98, "{what}: furnace mean {m}: energy lost");
-                }
+                // Rough glass of IOR 4 traps light for dozens of internal reflections, over
+                // which the glass table's residual of about 0.5% a bounce adds up: it keeps 0.73.
+                let floor = if transmission > 0.0 && roughness > 0.0 && ior > 2.0 { 0.70 } else { 0.98 };
+                assert!(m >= floor, "{what}: furnace mean {m}: energy lost");
             }
         }
     }

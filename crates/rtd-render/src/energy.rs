@@ -1,6 +1,8 @@
 //! Energy compensation for GGX: tabulated directional albedos of the single-scattering lobe, for
 //! Kulla and Conty's multiple-scattering term ("Revisiting Physically Based Shading at
-//! Imageworks", 2017) and for albedo-scaled layering of the specular layer over the diffuse.
+//! Imageworks", 2017) and for albedo-scaled layering of the specular layer over the diffuse;
+//! and of the rough dielectric interface (reflection plus transmission, [`glass_albedo`]), by
+//! whose inverse a rough glass lobe is scaled so that it loses no energy.
 //!
 //! With Schlick's Fresnel F = F0 + (1 − F0)(1 − c)⁵, the single-scattering albedo splits into
 //! E(μ) = F0·A(μ, r) + B(μ, r): A weights the lobe by 1 − (1 − c)⁵ and B by (1 − c)⁵, both with
@@ -121,6 +123,101 @@ pub fn multiple_scattering_fresnel(f0: Vec3, e_avg: f32) -> Vec3 {
     f_avg * f_avg * e_avg / (Vec3::ONE - f_avg * (1.0 - e_avg)).max(Vec3::splat(1e-6))
 }
 
+/// Points of the glass table along roughness and cosine.
+const GN: usize = 16;
+/// Points of the glass table along the relative IOR.
+const GE: usize = 32;
+/// Relative IORs tabulated: log-spaced over [1/GLASS_ETA_MAX, GLASS_ETA_MAX].
+const GLASS_ETA_MAX: f32 = 4.0;
+/// Quadrature points per axis for each glass table entry.
+const GQ: usize = 16;
+
+/// Directional albedo of the single-scattering rough dielectric interface: the energy that
+/// reflection and transmission together keep (the transmission without its 1/η² radiance
+/// factor, which a round trip cancels), tabulated over roughness, μ and the relative IOR η'
+/// of the side light arrives from (η' < 1 from inside, where total internal reflection
+/// returns the rest).
+pub struct GlassAlbedo {
+    /// E at [η'][r][μ].
+    e: Vec<[[f32; GN]; GN]>,
+}
+
+/// The shared glass table, computed on first use (about 0.2 s on two cores; only renders
+/// with rough glass need it).
+pub fn glass_albedo() -> &'static GlassAlbedo {
+    static TABLE: OnceLock<GlassAlbedo> = OnceLock::new();
+    TABLE.get_or_init(GlassAlbedo::compute)
+}
+
+/// η' of table slice `k`, log-spaced from 1/GLASS_ETA_MAX to GLASS_ETA_MAX.
+fn glass_eta_at(k: usize) -> f32 {
+    GLASS_ETA_MAX.powf(2.0 * k as f32 / (GE - 1) as f32 - 1.0)
+}
+
+/// μ of glass column `j`, evenly in √μ.
+fn glass_mu_at(j: usize) -> f32 {
+    let x = j as f32 / (GN - 1) as f32;
+    (x * x).max(MU_MIN)
+}
+
+impl GlassAlbedo {
+    fn compute() -> Self {
+        use rayon::prelude::*;
+        let e = (0..GE)
+            .into_par_iter()
+            .map(|k| {
+                let eta = glass_eta_at(k);
+                let mut slice = [[0.0f32; GN]; GN];
+                for (ri, row) in slice.iter_mut().enumerate() {
+                    let ggx = Ggx::from_roughness(ri as f32 / (GN - 1) as f32);
+                    for (j, v) in row.iter_mut().enumerate() {
+                        *v = Self::estimate(&ggx, glass_mu_at(j), eta);
+                    }
+                }
+                slice
+            })
+            .collect();
+        GlassAlbedo { e }
+    }
+
+    /// E by quadrature over visible normals: each normal reflects with probability F and
+    /// transmits with 1 − F, and either keeps G2/G1 of the energy.
+    fn estimate(ggx: &Ggx, mu: f32, eta: f32) -> f32 {
+        let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+        let mut sum = 0.0f64;
+        for s in 0..GQ * GQ {
+            let u = Vec2::new(((s % GQ) as f32 + 0.5) / GQ as f32, ((s / GQ) as f32 + 0.5) / GQ as f32);
+            let wm = ggx.sample_visible(wo, u);
+            let f = crate::microfacet::fresnel_dielectric(wo.dot(wm), eta);
+            let wr = reflect(wo, wm);
+            if wr.z > 0.0 {
+                let (g2, g1) = ggx.smith(wo, wr);
+                sum += (f * g2 / g1) as f64;
+            }
+            if let Some((wt, _)) = crate::microfacet::refract(wo, wm, eta) {
+                if wt.z < 0.0 {
+                    let (g2, g1) = ggx.smith(wo, wt);
+                    sum += ((1.0 - f) * g2 / g1) as f64;
+                }
+            }
+        }
+        (sum / (GQ * GQ) as f64) as f32
+    }
+
+    /// E at roughness `r`, cosine `mu` (from the side light arrives on) and relative IOR `eta`
+    /// of that side, trilinearly.
+    pub fn albedo(&self, r: f32, mu: f32, eta: f32) -> f32 {
+        let t = |x: f32, n: usize| x.clamp(0.0, 1.0) * (n - 1) as f32;
+        let fe = t((eta.max(1e-6).ln() / GLASS_ETA_MAX.ln() + 1.0) * 0.5, GE);
+        let (fr, fm) = (t(r, GN), t(mu.abs().sqrt(), GN));
+        let (k, i, j) = ((fe as usize).min(GE - 2), (fr as usize).min(GN - 2), (fm as usize).min(GN - 2));
+        let (te, tr, tm) = (fe - k as f32, fr - i as f32, fm - j as f32);
+        let at = |k: usize, i: usize| self.e[k][i][j] * (1.0 - tm) + self.e[k][i][j + 1] * tm;
+        let slice = |k: usize| at(k, i) * (1.0 - tr) + at(k, i + 1) * tr;
+        slice(k) * (1.0 - te) + slice(k + 1) * te
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,5 +242,21 @@ mod tests {
         }
         // With F0 = 1 the compensation's Fresnel is 1: white metal keeps all its energy.
         assert!((multiple_scattering_fresnel(Vec3::ONE, avg) - Vec3::ONE).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn a_smooth_interface_keeps_all_energy_and_a_rough_one_loses_some() {
+        let g = glass_albedo();
+        // Smooth: reflection and transmission add to one at every angle and IOR (Fresnel).
+        for eta in [0.25f32, 0.67, 1.5, 4.0] {
+            for mu in [1.0f32, 0.5, 0.1] {
+                let e = g.albedo(0.0, mu, eta);
+                assert!((e - 1.0).abs() < 2e-3, "η {eta}, μ {mu}: {e}");
+            }
+        }
+        // Rough: lost to single scattering, more at higher IOR contrast; no energy is made.
+        let (e15, e4) = (g.albedo(1.0, 1.0, 1.5), g.albedo(1.0, 1.0, 4.0));
+        assert!(e15 < 0.98 && e4 < e15 && e4 > 0.3, "{e15} {e4}");
+        assert!((0..GE).all(|k| g.e[k].iter().flatten().all(|v| *v <= 1.0 + 1e-3)));
     }
 }

@@ -36,7 +36,7 @@ use std::f32::consts::FRAC_1_PI;
 
 use rtd_scene::LayerParams;
 
-use crate::energy::{ggx_albedo, multiple_scattering_fresnel};
+use crate::energy::{ggx_albedo, glass_albedo, multiple_scattering_fresnel};
 use crate::microfacet::{fresnel_dielectric, fresnel_schlick, reflect, refract, Ggx};
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use crate::sheen::{sheen_albedo, sheen_pdf, Charlie};
@@ -141,6 +141,9 @@ pub struct Bsdf {
     ms_o: Vec3,
     /// Whether each lobe is a delta.
     delta: [bool; N_LOBES],
+    /// 1 / the rough dielectric interface's albedo towards `wo`, by which its lobe is scaled so
+    /// that no energy is lost to single scattering (1 for smooth or no glass).
+    glass_comp: f32,
     /// The clear coat, if any (front side only).
     coat: Option<Coat>,
     /// The sheen, if any (front side only).
@@ -232,7 +235,14 @@ impl Bsdf {
         let glass_smooth = smooth || (p.ior - 1.0).abs() < 1e-3;
         let coat_smooth = coat.is_some_and(|c| c.ggx.is_smooth());
         let delta = [false, smooth, glass_smooth, smooth, true, coat_smooth, false];
-        Bsdf { p, ggx, f0, prob, layer_o, layer_norm, ms_o, delta, coat, sheen }
+        // Energy compensation of rough glass: E of the side wo is on (η' = 1/IOR from inside).
+        let glass_comp = if t > 0.0 && !glass_smooth {
+            let eta = if wo.z >= 0.0 { p.ior } else { 1.0 / p.ior };
+            1.0 / glass_albedo().albedo(p.roughness, cos_o, eta).max(0.05)
+        } else {
+            1.0
+        };
+        Bsdf { p, ggx, f0, prob, layer_o, layer_norm, ms_o, delta, glass_comp, coat, sheen }
     }
 
     /// The coat and sheen towards `wo`; none on the back side, where there are no layers.
@@ -338,13 +348,15 @@ impl Bsdf {
                 let (g, g1) = self.ggx.smith(wo, wi);
                 // Visible-normal density D_wo(wm) = G1(wo)·D·|wo·wm|/|cos_o|.
                 let pm = g1 * d * cos_om.abs() / wo.z.abs();
+                // Both lobes scaled by glass_comp, the single-scattering loss restored.
                 if reflect {
-                    (Vec3::splat(d * g * fr / (4.0 * wi.z * wo.z).abs()), pm / (4.0 * cos_om.abs()) * fr)
+                    let fr_value = d * g * fr / (4.0 * wi.z * wo.z).abs() * self.glass_comp;
+                    (Vec3::splat(fr_value), pm / (4.0 * cos_om.abs()) * fr)
                 } else {
                     // Walter et al. 2007 transmission, with the 1/η'² radiance scaling.
                     let denom = (cos_im + cos_om / etap).powi(2);
                     let ft = d * (1.0 - fr) * g * (cos_im * cos_om / (denom * wi.z * wo.z)).abs() / (etap * etap);
-                    (self.p.base_color * ft, pm * cos_im.abs() / denom * (1.0 - fr))
+                    (self.p.base_color * (ft * self.glass_comp), pm * cos_im.abs() / denom * (1.0 - fr))
                 }
             }
             Lobe::Coat => {
