@@ -206,6 +206,27 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     assert!(err.contains("model.json") && err.contains("another network"), "{err}");
 }
 
+#[test]
+fn a_model_without_the_variance_planes_seeds_a_run_that_reads_them() {
+    // The shipped model reads the 16 legacy planes; one step at a negligible rate from it
+    // trains the full-width network, which must compute what the shipped model computes.
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    tiny_dataset(&data);
+    let shipped_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rtd-denoiser.bpk");
+    let shipped = rtd::denoise::Denoiser::load(&shipped_path).unwrap();
+    assert!(!shipped.reads_variance(), "the test needs a model without the variance planes");
+    let config = shipped.config().clone().with_input_channels(rtd::denoise::INPUT_CHANNELS);
+    let options = TrainOptions::default().config(config).batch(1, 16).steps(1).epoch_steps(1).learning_rate(1e-12);
+    train(&data, &dir.path().join("w"), &options.init(Some(shipped_path)), false, &Quiet).unwrap();
+    let widened = rtd::denoise::Denoiser::load(&dir.path().join("w/model.bpk")).unwrap();
+    assert!(widened.reads_variance());
+    let planes: Vec<f32> = (0..rtd::denoise::INPUT_CHANNELS * 64).map(|i| (i % 7) as f32 * 0.1).collect();
+    let (a, b) = (shipped.run_planes(&planes, 8, 8), widened.run_planes(&planes, 8, 8));
+    let diff = a.iter().zip(&b).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max);
+    assert!(diff < 1e-4, "the widened network computes something else: {diff}");
+}
+
 /// A dataset directory holding only a manifest that lists a training and a validation view of
 /// `size`² pixels which were never rendered: enough for the option checks, which come before
 /// any view is read.

@@ -293,7 +293,8 @@ impl DenoiserNet {
         let [c0, cin, kh, kw] = weight.dims();
         if channels > cin {
             let zeros = Tensor::<4>::zeros([c0, channels - cin, kh, kw], &weight.device());
-            self.stem.weight = Param::from_tensor(Tensor::cat(vec![weight, zeros], 1));
+            // `detach` makes the widened weight a leaf, which autodiff needs to track it.
+            self.stem.weight = Param::from_tensor(Tensor::cat(vec![weight, zeros], 1).detach());
         }
         self.map(&mut NumberedParams(0))
     }
@@ -369,6 +370,9 @@ mod tests {
         assert_eq!(wide.stem.weight.val().dims()[1], c);
         let after: Vec<f32> = wide.forward(full).into_data().try_to_vec().unwrap();
         assert_eq!(before, after);
+        // Training widens on the autodiff device, whose parameters must stay trackable leaves.
+        let trained = narrow.init(&Device::flex().autodiff()).widen_input(c);
+        assert!(trained.stem.weight.val().is_require_grad());
     }
 
     #[test]
