@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use crate::fast::Map;
+use crate::feature_map::Map;
 
 /// Output channels computed together (their weights broadcast, one register each per vector).
 pub(crate) const BLOCK: usize = 6;

@@ -8,6 +8,7 @@
 pub mod direct;
 pub mod encode;
 pub mod fast;
+pub mod feature_map;
 pub mod filter;
 pub mod infer;
 pub mod model;
