@@ -26,7 +26,7 @@ pub enum Family {
     /// 1,024 small coloured emitters spread over the ceiling of an 80 m hall, where most are
     /// far from any one point.
     LightHall,
-    /// One 65k-triangle displaced mesh placed 16 times (a million triangles once flattened).
+    /// One 131k-triangle displaced mesh placed 16 times (2.1 million triangles once flattened).
     InstancedMesh,
     /// Glossy walls, floor and objects (roughness 0.05–0.3).
     GlossyInterior,
@@ -262,7 +262,7 @@ fn instanced(rng: &mut ChaCha8Rng) -> GenScene {
     let mut s = lit_room(3.0);
     let m = material(&mut s, glossy_material(Vec3::new(0.6, 0.5, 0.4), 0.5, 0.0));
     let phase = rng.random_range(0.0..TAU);
-    // 181 segments: 181 × 362 quads, about 65k triangles after the degenerate poles go.
+    // 181 segments: 181 × 362 quads, about 131k triangles after the degenerate poles go.
     let blob = Mesh::sphere(Vec3::new(-3.0, 0.45, -3.0), 0.4, 181, &|d: Vec3| {
         0.08 * (7.0 * d.x + phase).sin() * (5.0 * d.y).cos() * (6.0 * d.z).sin()
     });

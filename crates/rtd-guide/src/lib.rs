@@ -11,6 +11,7 @@
 
 mod ao;
 pub mod raster;
+mod sample_grid;
 
 use std::time::Instant;
 
@@ -180,7 +181,6 @@ fn texture_footprint(scene: &Scene, tri: u32, m: &rtd_scene::Material, steps: &[
 fn shade_one_triangle(
     scene: &Scene,
     camera: &Camera,
-    front: &[Vec3],
     px: &[Option<raster::SampleHit>],
     footprints: &raster::Footprints,
 ) -> Option<Shaded> {
@@ -194,7 +194,7 @@ fn shade_one_triangle(
     if m.normal_texture.is_some() || t.n[0] != t.n[1] || t.n[1] != t.n[2] || !scene.vertex_colors.is_empty() {
         return None;
     }
-    let ng = front[first.triangle as usize];
+    let ng = t.front_normal();
     let point = |b: Vec3| t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
     let inv = 1.0 / px.len() as f32;
     let depth = |b: Vec3| camera_depth(camera, point(b));
@@ -261,14 +261,13 @@ impl GuidePass {
         let (w, h) = (settings.width, settings.height);
         let n = raster::SAMPLES;
         let inv = 1.0 / n as f32;
-        let front: Vec<Vec3> = scene.triangles.par_iter().map(|t| t.front_normal()).collect();
         // A sample that sees nothing sees the environment: white albedo if it emits, like an
         // emitter's (and like the path tracer's albedo AOV).
         let miss_albedo = if scene.environment.is_black() { Vec3::ZERO } else { Vec3::ONE };
         // Shade every sample with the renderer's surface code; keep the centre sample for AO.
         let shade = |px: &[Option<raster::SampleHit>], footprints: &raster::Footprints| {
             let mut out = Shaded::default();
-            if let Some(fast) = shade_one_triangle(scene, camera, &front, px, footprints) {
+            if let Some(fast) = shade_one_triangle(scene, camera, px, footprints) {
                 return fast;
             }
             // Texture filters of the footprint, computed at a pixel's first sample on each textured
@@ -284,7 +283,9 @@ impl GuidePass {
                 let b = hit.bary;
                 let m = &scene.materials[t.material as usize];
                 let p = t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
-                let ng = front[hit.triangle as usize];
+                // The geometric normal per sample (not a table over every triangle: a dense mesh
+                // has far more triangles than the image has samples).
+                let ng = t.front_normal();
                 let d = camera_depth(camera, p);
                 // Textures are averaged over the sample's footprint, so that 9 samples see a
                 // texture finer than a pixel as the path tracer's many samples converge to it.
@@ -340,11 +341,11 @@ impl GuidePass {
             .zip(centre.chunks_mut(rows))
             .map(|(((albedo, normal), depth), centre)| Band { albedo, normal, depth, centre })
             .collect();
-        raster::rasterize(scene, camera, w, h, bands, |band, i, px, footprints| {
+        let bounds = raster::scene_bounds(scene);
+        raster::rasterize(scene, &bounds, camera, w, h, bands, |band, i, px, footprints| {
             let s = shade(px, footprints);
             (band.albedo[i], band.normal[i], band.depth[i], band.centre[i]) = (s.albedo, s.normal, s.depth, s.centre);
         });
-        let bounds = scene.bounds();
         let radius =
             settings.ao_radius.unwrap_or(if bounds.is_empty() { 1.0 } else { 0.1 * bounds.diagonal().length() });
         let dirs = pattern(settings.ao_rays);

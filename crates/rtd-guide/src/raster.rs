@@ -4,33 +4,18 @@
 //! barycentrics of the original triangle), projected, and binned into tiles. Each tile is
 //! rasterised independently with a z-buffer per sample, so tiles run in parallel and the result
 //! never depends on the thread count. Each pixel has a fixed set of sample positions drawn from the
-//! same tent filter that the path tracer importance-samples, so edges line up with the beauty.
+//! same tent filter that the path tracer importance-samples, so edges line up with the beauty
+//! (`sample_grid.rs`); triangles that fall between all samples are dropped before binning.
 
 use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
-use rtd_scene::{AlphaMode, Camera, Projection, Scene};
+use rtd_scene::{Aabb, AlphaMode, Camera, Projection, Scene};
+
+use crate::sample_grid::{covers_a_sample, sample_fractions};
+pub use crate::sample_grid::{sample_offsets, SAMPLES, SAMPLES_1D};
 
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
-/// Samples per pixel side: the pixel takes SAMPLES_1D² samples.
-pub const SAMPLES_1D: usize = 3;
-/// Samples per pixel.
-pub const SAMPLES: usize = SAMPLES_1D * SAMPLES_1D;
-
-/// Sample offsets from the pixel centre: stratum centres of the tent filter's CDF (radius 1 px),
-/// the deterministic counterpart of the path tracer's importance-sampled tent.
-pub fn sample_offsets() -> [Vec2; SAMPLES] {
-    let tent = |u: f32| if u < 0.5 { (2.0 * u).sqrt() - 1.0 } else { 1.0 - (2.0 - 2.0 * u).sqrt() };
-    let mut out = [Vec2::ZERO; SAMPLES];
-    for j in 0..SAMPLES_1D {
-        for i in 0..SAMPLES_1D {
-            let u = (i as f32 + 0.5) / SAMPLES_1D as f32;
-            let v = (j as f32 + 0.5) / SAMPLES_1D as f32;
-            out[j * SAMPLES_1D + i] = Vec2::new(tent(u), tent(v));
-        }
-    }
-    out
-}
 
 /// What one sample sees.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,6 +67,9 @@ struct ScreenTri {
     /// Screen gradients of the screen-space barycentrics: ∂e0/∂x, ∂e0/∂y, ∂e1/∂x, ∂e1/∂y.
     grad: [f32; 4],
     triangle: u32,
+    /// The scene triangle's material (kept here: reading it from the triangle is a cache miss
+    /// per triangle on a mesh of millions).
+    material: u32,
 }
 
 /// Camera-space coordinates (x right, y up, z forward) of a world point.
@@ -122,8 +110,21 @@ fn clip_near(tri: &[(Vec3, Vec3); 3], near: f32) -> Clipped {
 }
 
 /// Projects and clips every triangle (alpha-blended ones too: they are drawn as opaque, like the
-/// path tracer's first-hit AOVs), in parallel, keeping the scene's order.
+/// path tracer's first-hit AOVs), in parallel, keeping the scene's order, and drops those that
+/// cover no sample.
 fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec<ScreenTri> {
+    project_triangles(scene, cam, (width, height), near, true)
+}
+
+/// [`setup`], keeping the triangles that cover no sample when `drop_uncovering` is false (the
+/// tests draw both lists and compare).
+fn project_triangles(
+    scene: &Scene,
+    cam: &Camera,
+    (width, height): (u32, u32),
+    near: f32,
+    drop_uncovering: bool,
+) -> Vec<ScreenTri> {
     let aspect = width as f32 / height as f32;
     let (sx, sy, persp) = match cam.projection {
         Projection::Perspective { yfov } => {
@@ -137,6 +138,7 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
         let key = if persp { 1.0 / c.z } else { -c.z };
         (Vec3::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32, key), w)
     };
+    let fractions = sample_fractions();
     // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there,
     // or the camera's own near clip).
     let near = if persp { near } else { cam.znear };
@@ -163,16 +165,23 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
             }
             let tri = [proj[0], proj[k], proj[k + 1]];
             let v = tri.map(|x| x.0);
-            if !v.iter().all(|p| p.is_finite()) {
+            if !v.iter().all(|p| p.is_finite()) || (drop_uncovering && !covers_a_sample(&v, width, height, &fractions))
+            {
                 return None;
             }
             // e0 = area(p, b, c) / area(a, b, c) and e1 = area(p, c, a) / area(a, b, c) are
             // affine in screen (x, y); their gradients (in f64: clipped vertices can be far off).
             let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
             let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+            // The rasteriser draws nothing of a degenerate triangle (the same test, on the same
+            // numbers, as `raster_tri`'s).
+            if drop_uncovering && (area == 0.0 || !area.is_finite()) {
+                return None;
+            }
             let grad =
                 [(b.1 - c.1) / area, (c.0 - b.0) / area, (c.1 - a.1) / area, (a.0 - c.0) / area].map(|g| g as f32);
-            Some(ScreenTri { v, w: tri.map(|x| x.1), b: tri.map(|x| x.2.into()), grad, triangle: i as u32 })
+            let (w, b) = (tri.map(|x| x.1), tri.map(|x| x.2.into()));
+            Some(ScreenTri { v, w, b, grad, triangle: i as u32, material: t.material })
         })
     };
     // Which of its two possible screen triangles each scene triangle gives (bit k: the k-th),
@@ -182,29 +191,52 @@ fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec
         .triangles
         .par_iter()
         .enumerate()
-        .map(|(i, t)| project(i, t).iter().enumerate().fold(0, |m, (k, s)| m | (s.is_some() as u8) << k))
+        .map(|(i, t)| {
+            // Most triangles of a dense mesh are whole in front of the eye and cover no sample:
+            // their screen box settles it, without building their screen triangles.
+            if drop_uncovering {
+                let c = t.p.map(|p| to_camera(cam, p));
+                if c.iter().all(|v| v.z >= near) {
+                    let v = c.map(|c| to_screen(c).0);
+                    if !v.iter().all(|p| p.is_finite()) || !covers_a_sample(&v, width, height, &fractions) {
+                        return 0;
+                    }
+                    // Unclipped, finite and covering a sample: one screen triangle unless it is
+                    // degenerate (`project`'s test, on the same numbers).
+                    let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
+                    let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+                    return (area != 0.0 && area.is_finite()) as u8;
+                }
+            }
+            project(i, t).iter().enumerate().fold(0, |m, (k, s)| m | (s.is_some() as u8) << k)
+        })
         .collect();
-    let slots: Vec<(usize, usize)> = present
+    let slots: Vec<(u32, u8)> = present
         .iter()
         .enumerate()
-        .flat_map(|(i, &m)| (0..2).filter(move |k| m >> k & 1 == 1).map(move |k| (i, k)))
+        .flat_map(|(i, &m)| (0..2u8).filter(move |k| m >> k & 1 == 1).map(move |k| (i as u32, k)))
         .collect();
-    slots.par_iter().map(|&(i, k)| project(i, &scene.triangles[i])[k].expect("projection is deterministic")).collect()
+    slots
+        .par_iter()
+        .map(|&(i, k)| {
+            let i = i as usize;
+            project(i, &scene.triangles[i])[k as usize].expect("projection is deterministic")
+        })
+        .collect()
 }
 
-/// Rasterises `scene` through `cam` and calls `shade` with what each pixel's [`SAMPLES`] samples
-/// see (and their [`Footprints`]). The image is cut into bands of [`TILE`] rows: `bands` holds
-/// one output per band (top first, as many as `height.div_ceil(TILE)`), and
+/// Rasterises `scene` (whose bounding box is `bounds`, from [`scene_bounds`]) through `cam` and
+/// calls `shade` with what each pixel's [`SAMPLES`] samples see (and their [`Footprints`]). The
+/// image is cut into bands of [`TILE`] rows: `bands` holds one output per band (top first, as many as `height.div_ceil(TILE)`), and
 /// `shade(band, i, samples, footprints)` stores pixel `i` of the band (row-major within it), so
 /// the caller's outputs are written in place. Bands are independent, so `shade` runs in
 /// parallel and the result never depends on the thread count.
-pub fn rasterize<B, F>(scene: &Scene, cam: &Camera, width: u32, height: u32, bands: Vec<B>, shade: F)
+pub fn rasterize<B, F>(scene: &Scene, bounds: &Aabb, cam: &Camera, width: u32, height: u32, bands: Vec<B>, shade: F)
 where
     B: Send,
     F: Fn(&mut B, usize, &[Option<SampleHit>], &Footprints) + Sync,
 {
     assert_eq!(bands.len(), height.div_ceil(TILE) as usize, "one output per band of TILE rows");
-    let bounds = scene.bounds();
     let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
     // The near plane sits far enough in front of the eye to keep 1/z well conditioned.
     let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
@@ -294,6 +326,22 @@ impl ScreenTri {
     }
 }
 
+/// The scene's bounding box ([`Scene::bounds`]), over its triangles in parallel: a dense mesh
+/// has hundreds of megabytes of them. Minima and maxima are exact, so the box is the same.
+pub fn scene_bounds(scene: &Scene) -> Aabb {
+    let union = |mut a: Aabb, b: Aabb| {
+        a.grow(b.min);
+        a.grow(b.max);
+        a
+    };
+    let box_of = |t: &rtd_scene::Triangle| {
+        let mut b = Aabb::EMPTY;
+        t.p.iter().for_each(|&p| b.grow(p));
+        b
+    };
+    scene.triangles.par_iter().map(box_of).reduce(|| Aabb::EMPTY, union)
+}
+
 /// A tile of the image: its top-left pixel and its size.
 #[derive(Clone, Copy)]
 struct TileRect {
@@ -326,9 +374,10 @@ fn raster_tri(
         return;
     }
     let (ox, oy) = (x0 as f64, y0 as f64);
+    let inv_area = 1.0 / area;
     let plane = |px: f64, py: f64, qx: f64, qy: f64| {
-        let (ea, eb) = ((py - qy) / area, (qx - px) / area);
-        let ec = (px * qy - py * qx) / area + ea * ox + eb * oy;
+        let (ea, eb) = ((py - qy) * inv_area, (qx - px) * inv_area);
+        let ec = (px * qy - py * qx) * inv_area + ea * ox + eb * oy;
         (ea as f32, eb as f32, ec as f32)
     };
     let (a0, b0, c0) = plane(bx, by, cx, cy);
@@ -356,7 +405,7 @@ fn raster_tri(
     let py0 = (lo.y.ceil().max(y0 as f32) as usize).saturating_sub(y0 as usize);
     let px1 = ((hi.x.floor() + 1.0 - x0 as f32).max(0.0) as usize).min(tw);
     let py1 = ((hi.y.floor() + 1.0 - y0 as f32).max(0.0) as usize).min(th);
-    let material = &scene.materials[scene.triangles[t.triangle as usize].material as usize];
+    let material = &scene.materials[t.material as usize];
     let cutoff = match material.alpha_mode {
         AlphaMode::Mask(c) => Some(c),
         _ => None,
@@ -416,13 +465,59 @@ fn raster_tri(
 mod tests {
     use super::*;
 
+    /// A small deterministic generator for the tests' random inputs.
+    fn lcg(state: &mut u64) -> f32 {
+        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (*state >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// Drops of triangles that cover no sample change no sample: a dense soup of tiny triangles
+    /// (most of them between samples), some degenerate, drawn with and without the drop, gives
+    /// the same triangle and depth at every sample.
     #[test]
-    fn offsets_follow_the_tent() {
-        let o = sample_offsets();
-        assert_eq!(o[SAMPLES / 2], Vec2::ZERO, "the centre sample is the pixel centre");
-        assert!(o.iter().all(|v| v.x.abs() < 1.0 && v.y.abs() < 1.0));
-        let mean: Vec2 = o.iter().copied().sum::<Vec2>() / SAMPLES as f32;
-        assert!(mean.length() < 1e-6);
+    fn dropping_triangles_that_cover_no_sample_changes_no_sample() {
+        use rtd_scene::{Material, Triangle};
+        let mut scene = Scene::default();
+        scene.materials.push(Material::default());
+        let mut state = 7u64;
+        for i in 0..40_000 {
+            // Centres over the view at z in −3..−2, sides of 0.002–0.12 (about 0.03–1.5 px).
+            let c = Vec3::new(lcg(&mut state) * 2.4 - 1.2, lcg(&mut state) * 2.4 - 1.2, -2.0 - lcg(&mut state));
+            let size = 0.002 + 0.118 * lcg(&mut state).powi(2);
+            let mut corner = || Vec3::new(lcg(&mut state) - 0.5, lcg(&mut state) - 0.5, lcg(&mut state) - 0.5) * size;
+            let mut p = [c + corner(), c + corner(), c + corner()];
+            if i % 50 == 0 {
+                p[2] = p[1]; // degenerate
+            }
+            scene.push_triangle(Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: 0 });
+        }
+        let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
+        let (w, h) = (40u32, 36u32);
+        let draw = |drop: bool| {
+            let tris = project_triangles(&scene, &cam, (w, h), 1e-3, drop);
+            let n = (w * h) as usize * SAMPLES;
+            let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; n], vec![Cover::NONE; n]);
+            let offsets = sample_offsets();
+            let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
+            let tile = TileRect { x0: 0, y0: 0, w: w as usize, h: h as usize };
+            for i in 0..tris.len() as u32 {
+                raster_tri(&scene, &tris, i, tile, &offsets, reach, (&mut depth, &mut cover));
+            }
+            let seen: Vec<(u32, u32)> = cover
+                .iter()
+                .zip(&depth)
+                .map(|(c, d)| (if c.tri == u32::MAX { u32::MAX } else { tris[c.tri as usize].triangle }, d.to_bits()))
+                .collect();
+            (tris.len(), seen)
+        };
+        assert_eq!(scene_bounds(&scene), scene.bounds(), "the parallel bounds are the serial ones");
+        let (all, every) = draw(false);
+        let (kept, dropped) = draw(true);
+        assert!(kept * 2 < all, "most triangles cover no sample ({kept} of {all} kept)");
+        let covered = every.iter().filter(|s| s.0 != u32::MAX).count();
+        assert!(covered > every.len() / 2, "the soup covers most samples ({covered} of {})", every.len());
+        eprintln!("{kept} of {all} kept, {covered} of {} samples covered", every.len());
+        assert_eq!(every, dropped, "the same triangle and depth at every sample");
     }
 
     #[test]
@@ -471,7 +566,7 @@ mod tests {
         let bands: Vec<usize> = (0..h.div_ceil(TILE) as usize).collect();
         let offsets = sample_offsets();
         let covered = std::sync::Mutex::new(Vec::new());
-        rasterize(&scene, &cam, w, h, bands, |band, i, px, _| {
+        rasterize(&scene, &scene_bounds(&scene), &cam, w, h, bands, |band, i, px, _| {
             let (x, y) = (i % w as usize, *band * TILE as usize + i / w as usize);
             for (s, hit) in px.iter().enumerate() {
                 if hit.is_some() {
