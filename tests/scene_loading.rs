@@ -572,6 +572,24 @@ fn an_accessor_running_past_its_buffer_view_is_an_error_naming_file_mesh_and_acc
 }
 
 #[test]
+fn an_image_that_cannot_be_decoded_is_named_in_the_error() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("wood.png"), b"\x89PNG\r\n\x1a\nnot a png at all").unwrap();
+    let (p, e) = corrupt_quad(dir.path(), "images.gltf", |doc, _| {
+        doc["images"] = json!([{"uri": "data:image/png;base64,iVBORw0KGgo="}, {"uri": "wood.png", "name": "Wood"}]);
+    });
+    let text = e.to_string();
+    assert!(text.starts_with(&format!("{}: cannot load image ", p.display())), "{text}");
+    // The first image (a truncated PNG in a data URI) fails first, then, once fixed, the second.
+    assert!(text.contains("image 0 (embedded data)"), "{text}");
+    let (_, e) = corrupt_quad(dir.path(), "images2.gltf", |doc, _| {
+        doc["images"] = json!([{"uri": "wood.png", "name": "Wood"}]);
+    });
+    assert!(e.to_string().contains("cannot load image 0 (\"Wood\", \"wood.png\")"), "{e}");
+    assert!(matches!(e, SceneError::GltfImage { .. }), "{e:?}");
+}
+
+#[test]
 fn other_structural_corruption_is_an_error_too() {
     let dir = tempfile::tempdir().unwrap();
     // An index naming vertex 7 of a 4-vertex quad.

@@ -24,9 +24,19 @@ pub enum SceneError {
     Gltf {
         /// The glTF file.
         path: PathBuf,
-        /// What was being done: `malformed glTF`, `invalid glTF`, `cannot load buffers` or
-        /// `cannot load images`.
+        /// What was being done: `malformed glTF`, `invalid glTF` or `cannot load buffers`.
         stage: &'static str,
+        /// The glTF crate's error.
+        source: gltf::Error,
+    },
+    /// One of a glTF file's images could not be read or decoded: the message names the image
+    /// (index and URI or name) and, when the decoder's memory limit refused it, that limit.
+    #[error("{path}: cannot load image {image}: {}{}", one_line(.source), limit_hint(.source))]
+    GltfImage {
+        /// The glTF file.
+        path: PathBuf,
+        /// The image: its index, then its URI, name or buffer view, e.g. `0 ("wood.png")`.
+        image: String,
         /// The glTF crate's error.
         source: gltf::Error,
     },
@@ -117,6 +127,7 @@ impl SceneError {
             SceneError::Io { path, .. }
             | SceneError::UnknownFormat { path }
             | SceneError::Gltf { path, .. }
+            | SceneError::GltfImage { path, .. }
             | SceneError::UnsupportedGltfExtension { path, .. }
             | SceneError::BufferView { path, .. }
             | SceneError::Accessor { path, .. }
@@ -210,6 +221,20 @@ fn one_line(s: &impl ToString) -> String {
     s.to_string().replace('\n', " ")
 }
 
+/// Bytes the glTF crate's image decoder may allocate for one image: the `image` crate's default
+/// limit, which it decodes under.
+const GLTF_IMAGE_LIMIT_MIB: u64 = 512;
+
+/// For an image the decoder's memory limit refused, what the limit is and what passes it.
+fn limit_hint(e: &gltf::Error) -> String {
+    match e {
+        gltf::Error::Image(image::ImageError::Limits(_)) => format!(
+            " (the image decoder allows at most {GLTF_IMAGE_LIMIT_MIB} MiB an image, 11585x11585 at 8-bit RGBA)"
+        ),
+        _ => String::new(),
+    }
+}
+
 /// ` ("NAME")` for a named mesh, nothing for an unnamed one.
 fn name_suffix(name: &Option<String>) -> String {
     name.as_ref().map(|n| format!(" ({n:?})")).unwrap_or_default()
@@ -241,6 +266,30 @@ mod tests {
         assert_eq!(e.path(), Path::new("gone.gltf"));
         let source = std::error::Error::source(&e).expect("the io::Error is kept");
         assert!(source.downcast_ref::<std::io::Error>().is_some());
+    }
+
+    #[test]
+    fn an_image_over_the_decoders_memory_limit_says_what_the_limit_is() {
+        use image::error::{LimitError, LimitErrorKind};
+        let limits = image::ImageError::Limits(LimitError::from_kind(LimitErrorKind::InsufficientMemory));
+        let e = SceneError::GltfImage {
+            path: PathBuf::from("big.gltf"),
+            image: "0 (\"big.png\")".into(),
+            source: gltf::Error::Image(limits),
+        };
+        assert_eq!(
+            e.to_string(),
+            "big.gltf: cannot load image 0 (\"big.png\"): Memory limit exceeded (the image decoder allows at most \
+             512 MiB an image, 11585x11585 at 8-bit RGBA)"
+        );
+        assert_eq!(e.path(), Path::new("big.gltf"));
+        // Other image errors get no hint.
+        let e = SceneError::GltfImage {
+            path: PathBuf::from("a.gltf"),
+            image: "1".into(),
+            source: gltf::Error::MissingBlob,
+        };
+        assert!(!e.to_string().contains("MiB"), "{e}");
     }
 
     #[test]

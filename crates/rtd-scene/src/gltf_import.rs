@@ -99,8 +99,32 @@ fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<GltfFile, SceneError> {
     check_buffer_views(&document, path)?;
     let base = path.parent();
     let buffers = gltf::import_buffers(&document, base, blob).map_err(gltf_err("cannot load buffers"))?;
-    let images = gltf::import_images(&document, base, &buffers).map_err(gltf_err("cannot load images"))?;
+    // Image by image (as `gltf::import_images` does), so that an error names the image.
+    let images = document
+        .images()
+        .map(|image| {
+            gltf::image::Data::from_source(image.source(), base, &buffers).map_err(|source| SceneError::GltfImage {
+                path: path.to_path_buf(),
+                image: image_label(&image),
+                source,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(GltfFile { document, buffers, images })
+}
+
+/// An image's index and where it comes from: `2 ("wood.png")`, `0 ("name", buffer view 3)`, or
+/// `1 (embedded data)` for a `data:` URI.
+fn image_label(image: &gltf::Image) -> String {
+    let source = match image.source() {
+        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => "embedded data".to_string(),
+        gltf::image::Source::Uri { uri, .. } => format!("{uri:?}"),
+        gltf::image::Source::View { view, .. } => format!("buffer view {}", view.index()),
+    };
+    match image.name() {
+        Some(name) => format!("{} ({name:?}, {source})", image.index()),
+        None => format!("{} ({source})", image.index()),
+    }
 }
 
 /// The scene `choice` names (by name, then by index), else the default one, else the first.
