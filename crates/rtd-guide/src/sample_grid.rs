@@ -31,9 +31,11 @@ pub(crate) fn sample_fractions() -> [f32; SAMPLES_1D] {
     std::array::from_fn(|i| 0.5 + offsets[i].x)
 }
 
-/// Pixels by which [`covers_a_sample`] widens a bounding box: far above the rounding of the edge
-/// functions (about 1e-6 px), so that it never drops a triangle the rasteriser would draw.
-const COVER_MARGIN: f32 = 1e-3;
+/// Pixels by which [`covers_a_sample`] widens a bounding box, so that it never drops a triangle
+/// the rasteriser would draw: 1/128 px, far above the rounding of the test's own f32 arithmetic
+/// at the largest image side (an ulp is 1/1024 px between 8192 and 16384) and of the edge
+/// functions, and far below the samples' spacing (0.155 px at the least).
+const COVER_MARGIN: f32 = 1.0 / 128.0;
 
 /// Whether the interval [lo, hi] (pixels) holds a sample coordinate k + f, for a pixel k in
 /// 0..n and f one of `fractions` (or may: wide intervals answer yes).
