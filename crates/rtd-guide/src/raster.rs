@@ -109,6 +109,21 @@ fn clip_near(tri: &[(Vec3, Vec3); 3], near: f32) -> Clipped {
     out
 }
 
+/// Twice the signed screen area of a triangle, in f64 (clipped vertices can project far off
+/// screen).
+#[inline]
+fn signed_area(v: &[Vec3; 3]) -> f64 {
+    let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
+    (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
+}
+
+/// Whether the rasteriser draws a triangle of this [`signed_area`]: not a degenerate or
+/// non-finite one. The one test both dropping a triangle early and drawing it use.
+#[inline]
+fn drawable(area: f64) -> bool {
+    area != 0.0 && area.is_finite()
+}
+
 /// Projects and clips every triangle (alpha-blended ones too: they are drawn as opaque, like the
 /// path tracer's first-hit AOVs), in parallel, keeping the scene's order, and drops those that
 /// cover no sample.
@@ -172,10 +187,8 @@ fn project_triangles(
             // e0 = area(p, b, c) / area(a, b, c) and e1 = area(p, c, a) / area(a, b, c) are
             // affine in screen (x, y); their gradients (in f64: clipped vertices can be far off).
             let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
-            let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
-            // The rasteriser draws nothing of a degenerate triangle (the same test, on the same
-            // numbers, as `raster_tri`'s).
-            if drop_uncovering && (area == 0.0 || !area.is_finite()) {
+            let area = signed_area(&v);
+            if drop_uncovering && !drawable(area) {
                 return None;
             }
             let grad =
@@ -202,10 +215,8 @@ fn project_triangles(
                         return 0;
                     }
                     // Unclipped, finite and covering a sample: one screen triangle unless it is
-                    // degenerate (`project`'s test, on the same numbers).
-                    let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
-                    let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
-                    return (area != 0.0 && area.is_finite()) as u8;
+                    // degenerate.
+                    return drawable(signed_area(&v)) as u8;
                 }
             }
             project(i, t).iter().enumerate().fold(0, |m, (k, s)| m | (s.is_some() as u8) << k)
@@ -369,8 +380,8 @@ fn raster_tri(
     // (clipped vertices can project far off screen) and normalised by twice the signed area:
     // e0, e1, e2 are the screen-space barycentrics of vertices a, b, c. Either winding is drawn.
     let (ax, ay, bx, by, cx, cy) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64);
-    let area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
-    if area == 0.0 || !area.is_finite() {
+    let area = signed_area(&t.v);
+    if !drawable(area) {
         return;
     }
     let (ox, oy) = (x0 as f64, y0 as f64);
