@@ -5,7 +5,7 @@
 //! allocator below, which aborts the run). Found crashes are kept in
 //! `tests/fuzz-regressions/TARGET/` and replayed first, every run.
 //!
-//! `RTD_FUZZ_SECS` sets the seconds per target (default 8, as CI runs it); `RTD_FUZZ_CPU_SECS`
+//! `RTD_FUZZ_SECS` sets the seconds per target (default 30, as CI runs it); `RTD_FUZZ_CPU_SECS`
 //! instead bounds each target by the processor time the process spends on it, so a campaign
 //! run at low priority beside other work still fuzzes each target for the stated time;
 //! `RTD_FUZZ_SEED` the generator's seed; `RTD_FUZZ_TARGETS` a comma-separated subset. Each
@@ -403,7 +403,7 @@ fn loaders_survive_mutated_input() {
     let env = |name: &str| std::env::var(name).ok().and_then(|s| s.parse::<f64>().ok());
     let budget = match (env("RTD_FUZZ_CPU_SECS"), env("RTD_FUZZ_SECS")) {
         (Some(cpu), _) => Budget::Cpu(cpu),
-        (None, wall) => Budget::Wall(wall.unwrap_or(8.0)),
+        (None, wall) => Budget::Wall(wall.unwrap_or(30.0)),
     };
     let seed: u64 = std::env::var("RTD_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
     let only = std::env::var("RTD_FUZZ_TARGETS").ok();
