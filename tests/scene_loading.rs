@@ -590,6 +590,31 @@ fn an_image_that_cannot_be_decoded_is_named_in_the_error() {
 }
 
 #[test]
+fn a_texture_over_rtds_pixel_limit_is_refused_before_it_is_widened() {
+    // 16384 x 4097 is one row of 16384 over MAX_PIXELS (2^26), and 67 MB as 8-bit grey: well
+    // inside the image decoder's own 512 MiB bound, so only rtd's limit can refuse it.
+    let (w, h) = (16384, 4097);
+    assert!(w * h > rtd::image::MAX_PIXELS && w * h - w <= rtd::image::MAX_PIXELS);
+    let dir = tempfile::tempdir().unwrap();
+    let file = std::fs::File::create(dir.path().join("big.png")).unwrap();
+    let png = image::codecs::png::PngEncoder::new_with_quality(
+        std::io::BufWriter::new(file),
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::NoFilter,
+    );
+    image::ImageEncoder::write_image(png, &vec![0u8; w * h], w as u32, h as u32, image::ExtendedColorType::L8).unwrap();
+    let (p, e) = corrupt_quad(dir.path(), "big.gltf", |doc, _| doc["images"] = json!([{"uri": "big.png"}]));
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: image 0 (\"big.png\"): image size 16384x4097 exceeds {} pixels",
+            p.display(),
+            rtd::image::MAX_PIXELS
+        )
+    );
+}
+
+#[test]
 fn other_structural_corruption_is_an_error_too() {
     let dir = tempfile::tempdir().unwrap();
     // An index naming vertex 7 of a 4-vertex quad.

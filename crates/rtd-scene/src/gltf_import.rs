@@ -1,4 +1,4 @@
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 
@@ -103,11 +103,15 @@ fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<GltfFile, SceneError> {
     let images = document
         .images()
         .map(|image| {
-            gltf::image::Data::from_source(image.source(), base, &buffers).map_err(|source| SceneError::GltfImage {
-                path: path.to_path_buf(),
-                image: image_label(&image),
-                source,
-            })
+            let data = gltf::image::Data::from_source(image.source(), base, &buffers).map_err(|source| {
+                SceneError::GltfImage { path: path.to_path_buf(), image: image_label(&image), source }
+            })?;
+            // rtd's own pixel limit, before the texture is widened to f32 with mips (about 21 bytes
+            // a texel): the decoder's 512 MiB bound alone lets an 11585² texture through.
+            let name = PathBuf::from(format!("image {}", image_label(&image)));
+            rtd_image::check_image_size(&name, data.width as usize, data.height as usize)
+                .map_err(|e| SceneError::new(path, e))?;
+            Ok(data)
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(GltfFile { document, buffers, images })
