@@ -137,6 +137,12 @@ fn bad_arguments_fail_cleanly() {
         assert_fails(&rtd(&args), &format!("unexpected argument '{}'", removed[0]));
     }
     assert_fails(&rtd(&["train", "--data", o, "-o", o, "--exposure-key", "0"]), "--exposure-key");
+    // Absurd sample counts and spans: refused as arguments, before any work (1e20 s once reached
+    // a panic in Duration; an i64::MAX-ms lease overflowed the queue's clock).
+    assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "99999999999"]), "--spp");
+    assert_fails(&rtd(&["bench", "lights", "-o", o, "--seconds", "1e20"]), "--seconds");
+    assert_fails(&rtd(&["worker", "--database", "sqlite://x.db", "--lease", "9223372036854775807ms"]), "--lease");
+    assert_fails(&rtd(&["serve", "--keep", "300000000000000ms"]), "--keep");
     // Refreshing a dataset's guides keeps its own generation settings.
     for (flag, value) in
         [("--scenes", "3"), ("--size", "64"), ("--seed", "2"), ("--views", "1"), ("--reference-spp", "8")]
@@ -247,35 +253,59 @@ fn a_corrupt_gltf_accessor_fails_the_render() {
     assert_eq!(files_in(dir.path()), vec![scene], "nothing but the scene is left in the directory");
 }
 
+/// A scene with no lights, and no environment or a black one, renders black with one clear
+/// warning, rather than failing or leaving the user to guess.
 #[test]
-fn nan_and_degenerate_triangles_are_skipped_with_a_warning() {
+fn a_scene_without_lights_under_a_black_sky_renders_black_with_a_clear_warning() {
     let dir = tempfile::tempdir().unwrap();
-    let obj = dir.path().join("n.obj");
-    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 2 5\n").unwrap();
+    let obj = dir.path().join("dark.obj");
+    std::fs::write(&obj, "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    for env in [None, Some("0,0,0")] {
+        let out = dir.path().join("dark.exr");
+        let (s, o) = (obj.to_str().unwrap(), out.to_str().unwrap());
+        let mut args = vec!["render", s, "-o", o, "--spp", "2", "--width", "8", "--height", "8", "-q"];
+        args.extend(["--look-from", "0,0,3", "--look-at", "0,0,0"]);
+        if let Some(e) = env {
+            args.extend(["--env", e]);
+        }
+        let run = rtd(&args);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{env:?}: {err}");
+        assert!(err.contains("scene has no lights and no environment; the image will be black"), "{env:?}: {err}");
+        let beauty = rtd::image::read_exr(&out).unwrap().image(rtd::image::Layer::Beauty).unwrap();
+        assert!(beauty.pixels.iter().all(|p| *p == glam::Vec3::ZERO), "{env:?}: not black");
+        std::fs::remove_file(&out).unwrap();
+    }
+}
+
+#[test]
+fn nan_vertices_fail_the_render_and_degenerate_triangles_are_skipped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("n.png");
-    let o = rtd(&[
-        "render",
-        obj.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--spp",
-        "1",
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--look-from",
-        "0.3,0.3,2",
-        "--look-at",
-        "0.3,0.3,0",
-        "--env",
-        "1",
-        "-q",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let render = |name: &str, body: &str| {
+        let obj = dir.path().join(name);
+        std::fs::write(&obj, body).unwrap();
+        let args =
+            ["--spp", "1", "--width", "8", "--height", "8", "--look-from", "0.3,0.3,2", "--look-at", "0.3,0.3,0"];
+        let mut all = vec!["render", obj.to_str().unwrap(), "-o", out.to_str().unwrap(), "--env", "1", "-q"];
+        all.extend(args);
+        rtd(&all)
+    };
+    // A zero-area triangle is harmless (it covers nothing): dropped, with a warning.
+    let o = render("flat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n");
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("skipped 1 triangles with NaN") && err.contains("skipped 1 degenerate"), "{err}");
+    assert!(o.status.success() && err.contains("skipped 1 degenerate"), "{err}");
     assert!(out.exists());
+    std::fs::remove_file(&out).unwrap();
+    // A NaN or infinite position has no right place: the file is refused, and nothing written.
+    let o = render("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 1 0\nf 1 2 3\nf 1 2 4\n");
+    assert_fails(&o, "nan.obj: a triangle has a NaN or infinite vertex position");
+    let o = render("inf.obj", "v 0 0 0\nv 1 0 0\nv inf 1 0\nf 1 2 3\nf 3 2 1\n");
+    assert_fails(&o, "inf.obj: 2 triangles have NaN or infinite vertex positions");
+    // A face naming a vertex the file does not have.
+    let o = render("index.obj", "o Box\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+    assert_fails(&o, "index.obj: ");
+    assert!(!out.exists(), "an output was written for a refused scene");
 }
 
 /// Ctrl-C (SIGINT) stops after the pass in flight and still writes the finished passes.

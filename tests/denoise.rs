@@ -161,7 +161,12 @@ fn the_shipped_model_reads_depth_and_ao_and_no_depth_models_are_refused() {
     let e = Denoiser::from_bytes(&config.to_string(), weights.clone(), "m").err().expect("refused").to_string();
     assert!(e.contains("--no-depth"), "{e}");
     config["depth"] = serde_json::Value::Bool(true);
-    assert!(Denoiser::from_bytes(&config.to_string(), weights, "m").is_ok());
+    assert!(Denoiser::from_bytes(&config.to_string(), weights.clone(), "m").is_ok());
+    // An even prong has no centre tap (its branch would come out a pixel short); refused before
+    // the weights are read, whatever their shapes.
+    config["prong"] = serde_json::json!(4);
+    let e = Denoiser::from_bytes(&config.to_string(), weights, "m").err().expect("refused").to_string();
+    assert!(e.contains("implausible prong 4 (an odd width from 1 to 15)"), "{e}");
 }
 
 #[test]

@@ -615,6 +615,58 @@ fn a_texture_over_rtds_pixel_limit_is_refused_before_it_is_widened() {
 }
 
 #[test]
+fn nan_or_infinite_positions_fail_the_load_and_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    // Vertex 0 (in both triangles of the quad) made NaN.
+    let (p, e) = corrupt_quad(dir.path(), "nan.gltf", |_, buf| buf[0..4].copy_from_slice(&f32::NAN.to_le_bytes()));
+    assert_eq!(e.to_string(), format!("{}: 2 triangles have NaN or infinite vertex positions", p.display()));
+    // Finite in the file and a finite transform, but x = 1 lands at 3e38 + 3e38 = infinity.
+    let (p, e) = corrupt_quad(dir.path(), "far.gltf", |doc, _| {
+        doc["nodes"][0]["scale"] = json!([3e38, 1, 1]);
+        doc["nodes"][0]["translation"] = json!([3e38, 0, 0]);
+    });
+    assert_eq!(e.to_string(), format!("{}: 2 triangles have NaN or infinite vertex positions", p.display()));
+    // A transform that is itself past f32's range refuses everything under it.
+    let (p, e) = corrupt_quad(dir.path(), "huge.gltf", |doc, _| {
+        doc["nodes"][0]["name"] = json!("Big");
+        doc["nodes"][0]["scale"] = json!([1e39, 1e39, 1e39]);
+    });
+    assert_eq!(
+        e.to_string(),
+        format!("{}: node 0 (\"Big\") has a non-finite transform (NaN, or past f32's range)", p.display())
+    );
+}
+
+#[test]
+fn a_node_graph_that_is_not_a_tree_is_refused_rather_than_walked_for_ever() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("self.gltf", json!([{"mesh": 0, "children": [0]}]), 0),
+        ("loop.gltf", json!([{"mesh": 0, "children": [1]}, {"children": [0]}]), 0),
+        ("shared.gltf", json!([{"children": [1, 1]}, {"mesh": 0}]), 1),
+    ];
+    for (name, nodes, twice) in cases {
+        let (p, e) = corrupt_quad(dir.path(), name, |doc, _| doc["nodes"] = nodes);
+        let want = format!("{}: node {twice} is reached twice: nodes must form trees, without cycles", p.display());
+        assert_eq!(e.to_string(), want);
+    }
+}
+
+#[test]
+fn an_obj_texture_of_zero_size_is_a_warning_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    // A Radiance header the image crate accepts, declaring 5 x 0 pixels.
+    std::fs::write(dir.path().join("t.hdr"), b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 0 +X 5\n").unwrap();
+    std::fs::write(dir.path().join("m.mtl"), "newmtl a\nKd 1 1 1\nmap_Kd t.hdr\n").unwrap();
+    std::fs::write(dir.path().join("m.obj"), "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n").unwrap();
+    let s = load_scene(&dir.path().join("m.obj")).unwrap();
+    assert!(s.textures.is_empty());
+    let t = dir.path().join("t.hdr");
+    let want = format!("material a: texture not loaded: {}: image size 5x0 is outside 1..=16384 a side", t.display());
+    assert_eq!(s.warnings, [want]);
+}
+
+#[test]
 fn other_structural_corruption_is_an_error_too() {
     let dir = tempfile::tempdir().unwrap();
     // An index naming vertex 7 of a 4-vertex quad.
@@ -664,15 +716,15 @@ fn obj_with_mtl_maps_materials() {
     .unwrap();
     std::fs::write(
         dir.path().join("m.obj"),
-        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv nan 0 0\nvt 0 0\nvt 1 0\nvt 1 1\n\
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n\
          usemtl glass\nf 1/1 2/2 3/3\nusemtl metal\nf 1 3 4\nusemtl lamp\nf 1 2 4\nusemtl plastic\nf 2 3 4\n\
-         f 1 2 5\nf 1 1 2\n",
+         f 1 1 2\n",
     )
     .unwrap();
     let s = load_scene(&dir.path().join("m.obj")).unwrap();
     assert_eq!(s.triangles.len(), 4);
-    assert_eq!((s.skipped_nonfinite, s.skipped_degenerate), (1, 1));
-    assert!(s.warnings.iter().any(|w| w.contains("NaN")) && s.warnings.iter().any(|w| w.contains("degenerate")));
+    assert_eq!((s.skipped_nonfinite, s.skipped_degenerate), (0, 1));
+    assert!(s.warnings.iter().any(|w| w.contains("degenerate")), "{:?}", s.warnings);
     let by_name = |n: &str| s.materials.iter().find(|m| m.name == n).unwrap();
     let g = by_name("glass");
     assert_eq!((g.transmission, g.ior, g.roughness), (1.0, 1.33, 0.0));

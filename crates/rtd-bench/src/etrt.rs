@@ -184,7 +184,9 @@ pub fn reference(
     }
     let path = cache_dir.join(format!("reference-{key:016x}.exr"));
     if let Ok(l) = rtd_image::read_exr(&path) {
-        if let (Some(image), Some(noise)) = (l.image(Layer::Beauty), l.plane(Layer::NoiseEstimate)) {
+        // A cached file of another size (damaged, or written by hand) is rendered again.
+        let sized = |i: &HdrImage| (i.width, i.height) == (o.width, o.height);
+        if let (Some(image), Some(noise)) = (l.image(Layer::Beauty).filter(sized), l.plane(Layer::NoiseEstimate)) {
             let description = format!("{} spp, cached {}", o.reference_spp, path.display());
             return Ok(Reference { image, description, relmse: Some(noise[0] as f64) });
         }

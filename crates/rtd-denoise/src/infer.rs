@@ -115,9 +115,13 @@ impl Denoiser {
         {
             return Err(DenoiseError::model(name, format!("implausible channel list {:?}", config.channels)));
         }
-        if !(1..=15).contains(&config.prong) || config.bottleneck_blocks > 64 {
+        // An even prong has no centre tap: its branch would come out a pixel short of the others.
+        if !(1..=15).contains(&config.prong) || config.prong % 2 == 0 || config.bottleneck_blocks > 64 {
             let (prong, blocks) = (config.prong, config.bottleneck_blocks);
-            return Err(DenoiseError::model(name, format!("implausible prong {prong} or bottleneck blocks {blocks}")));
+            return Err(DenoiseError::model(
+                name,
+                format!("implausible prong {prong} (an odd width from 1 to 15) or bottleneck blocks {blocks}"),
+            ));
         }
         let device = Device::flex();
         // burn's record reader is fenced as the other parsers are: a model file is a stranger's too.

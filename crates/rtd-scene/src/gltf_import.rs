@@ -65,7 +65,7 @@ pub fn load_gltf_scene(path: &Path, choice: Option<&str>) -> Result<Scene, Scene
             .warnings
             .push(format!("skipped {skipped_primitives} primitives that are not triangles or have no positions"));
     }
-    scene.finish_load();
+    scene.finish_load(path)?;
     Ok(scene)
 }
 
@@ -174,11 +174,21 @@ impl NodeVisitor<'_> {
     fn visit(&mut self, gscene: &gltf::Scene, scene: &mut Scene) -> Result<(), SceneError> {
         let mut stack: Vec<(gltf::Node, Mat4)> = gscene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
         stack.reverse();
+        // glTF nodes form trees: a node reached twice is in a cycle (which would never end) or
+        // under two parents (which doubles the work at each such level).
+        let mut seen = std::collections::HashSet::new();
         while let Some((node, parent)) = stack.pop() {
+            if !seen.insert(node.index()) {
+                let message = format!("node {} is reached twice: nodes must form trees, without cycles", node.index());
+                return Err(SceneError::new(self.path, message));
+            }
             let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            // As NaN vertices are: nothing under such a node has a right place.
             if !world.is_finite() {
-                scene.warnings.push(format!("node {} has a non-finite transform; skipped", node.index()));
-                continue;
+                let name = node.name().map(|n| format!(" ({n:?})")).unwrap_or_default();
+                let message =
+                    format!("node {}{name} has a non-finite transform (NaN, or past f32's range)", node.index());
+                return Err(SceneError::new(self.path, message));
             }
             if let Some(mesh) = node.mesh() {
                 let site = MeshSite { path: self.path, index: mesh.index(), name: mesh.name() };

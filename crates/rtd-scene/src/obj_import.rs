@@ -57,14 +57,15 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
         let nverts = (mesh.positions.len() / 3) as u32;
         for c in mesh.indices.chunks_exact(3) {
             let t = [c[0], c[1], c[2]];
-            if t.iter().any(|&i| i >= nverts) {
-                scene.skipped_nonfinite += 1;
-                continue;
+            if let Some(&i) = t.iter().find(|&&i| i >= nverts) {
+                let object = &model.name;
+                let message = format!("object {object:?}: a face names vertex {} of {nverts}", u64::from(i) + 1);
+                return Err(SceneError::new(path, message));
             }
             scene.push_triangle(Triangle { p: t.map(pos), n: t.map(nrm), uv: t.map(uv), material });
         }
     }
-    scene.finish_load();
+    scene.finish_load(path)?;
     Ok(scene)
 }
 
@@ -138,14 +139,26 @@ fn convert_material(m: &tobj::Material, dir: &Path, scene: &mut Scene) -> Materi
                 scene.textures.push(t);
                 mat.base_color_texture = Some(TextureRef::plain(scene.textures.len() as u32 - 1));
             }
-            Err(e) => scene.warnings.push(format!("material {}: texture {} not loaded: {e}", m.name, file.display())),
+            Err(e) => scene.warnings.push(format!("material {}: texture not loaded: {e}", m.name)),
         }
     }
     mat
 }
 
+/// Decodes the image at `path` as a texture, under rtd's image size limits (checked from the
+/// header, before decoding) and the parser fence; errors name the file.
 fn load_texture(path: &Path) -> Result<Texture, String> {
-    let img = image::open(path).map_err(|e| e.to_string())?.to_rgba8();
+    let named = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let open = || image::ImageReader::open(path)?.with_guessed_format();
+    let (w, h) = open().map_err(|e| named(&e))?.into_dimensions().map_err(|e| named(&e))?;
+    rtd_image::check_image_size(path, w as usize, h as usize).map_err(|e| e.to_string())?;
+    let decoded = rtd_image::contain_panic(|| open().map_err(|e| named(&e))?.decode().map_err(|e| named(&e)))
+        .map_err(|e| named(&e))??;
+    let img = decoded.to_rgba8();
+    if img.dimensions() != (w, h) {
+        let (dw, dh) = img.dimensions();
+        return Err(named(&format!("header says {w}x{h} but the pixel data is {dw}x{dh}")));
+    }
     let texels = img
         .pixels()
         .map(|p| {

@@ -1,6 +1,8 @@
+use std::path::Path;
+
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::{Aabb, Camera, Environment, Light, Material, TexCoords, Texture};
+use crate::{Aabb, Camera, Environment, Light, Material, SceneError, TexCoords, Texture};
 
 /// One world-space triangle with per-vertex shading attributes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,8 +56,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Environment lighting (black unless set by the caller).
     pub environment: Environment,
-    /// Triangles dropped at load because a position was NaN/Inf (or, in an OBJ file, a vertex
-    /// index was out of range).
+    /// Triangles [`Scene::push_triangle`] refused because a position was NaN/Inf. A file with any
+    /// fails to load (no position is right for them), so this counts only in scenes built in code.
     pub skipped_nonfinite: usize,
     /// Triangles dropped at load because they had zero area.
     pub skipped_degenerate: usize,
@@ -208,10 +210,17 @@ impl Scene {
         })
     }
 
-    /// Records the skipped-triangle counts as warnings; importers call this once at the end.
-    pub(crate) fn finish_load(&mut self) {
+    /// Refuses a file `path` with NaN/Inf vertex positions and records the degenerate triangles
+    /// it dropped as a warning; importers call this once at the end.
+    pub(crate) fn finish_load(&mut self, path: &Path) -> Result<(), SceneError> {
         if self.skipped_nonfinite > 0 {
-            self.warnings.push(format!("skipped {} triangles with NaN/Inf vertices", self.skipped_nonfinite));
+            return Err(SceneError::new(
+                path,
+                match self.skipped_nonfinite {
+                    1 => "a triangle has a NaN or infinite vertex position".to_string(),
+                    n => format!("{n} triangles have NaN or infinite vertex positions"),
+                },
+            ));
         }
         if self.skipped_degenerate > 0 {
             self.warnings.push(format!("skipped {} degenerate (zero-area) triangles", self.skipped_degenerate));
@@ -219,6 +228,7 @@ impl Scene {
         if self.materials.is_empty() {
             self.materials.push(Material::default());
         }
+        Ok(())
     }
 
     /// Bytes held on the heap by triangles, side tables, materials and textures (with mips).
@@ -311,11 +321,15 @@ mod tests {
         let mut s = Scene::default();
         assert!(s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::Y])));
         assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::X * 2.0])));
-        assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::splat(f32::NAN), Vec3::Y])));
-        s.finish_load();
-        assert_eq!((s.triangles.len(), s.skipped_degenerate, s.skipped_nonfinite), (1, 1, 1));
+        s.finish_load(Path::new("s.obj")).unwrap();
         assert_eq!(s.triangles[0].n[0], Vec3::Z, "missing normals become flat normals");
-        assert_eq!(s.warnings.len(), 2);
+        assert_eq!(s.warnings, ["skipped 1 degenerate (zero-area) triangles"]);
+        // A NaN position is refused by the triangle and fails the file's load.
+        assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::splat(f32::NAN), Vec3::Y])));
+        assert!(!s.push_triangle(tri([Vec3::ZERO, Vec3::X, Vec3::splat(f32::INFINITY)])));
+        assert_eq!((s.triangles.len(), s.skipped_degenerate, s.skipped_nonfinite), (1, 1, 2));
+        let e = s.finish_load(Path::new("s.obj")).unwrap_err();
+        assert_eq!(e.to_string(), "s.obj: 2 triangles have NaN or infinite vertex positions");
     }
 
     /// Tangents live in a side table that exists only once some triangle brings them: a scene

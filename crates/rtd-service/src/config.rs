@@ -23,6 +23,9 @@ pub const MAX_ATTEMPTS: i64 = 3;
 pub const MAX_RANGES_PER_JOB: u32 = 64;
 /// Shortest lease accepted: renewal runs every quarter lease.
 pub const MIN_LEASE: Duration = Duration::from_secs(1);
+/// Longest lease, retention or timeout accepted (about ten years): the queue keeps times as
+/// `i64` milliseconds, and a longer span would overflow them.
+pub const MAX_SPAN: Duration = Duration::from_secs(3650 * 24 * 3600);
 
 /// How `rtd serve` and `rtd worker` behave, builder style from [`ServiceConfig::default`].
 #[derive(Clone, Debug)]
@@ -76,7 +79,7 @@ impl ServiceConfig {
     }
     /// Sets how long finished jobs are kept.
     pub fn keep(mut self, keep: Duration) -> Self {
-        self.keep = keep;
+        self.keep = keep.min(MAX_SPAN);
         self
     }
     /// Sets the uploads per minute per client address.
@@ -86,12 +89,12 @@ impl ServiceConfig {
     }
     /// Sets how long a request body may take.
     pub fn upload_timeout(mut self, t: Duration) -> Self {
-        self.upload_timeout = t;
+        self.upload_timeout = t.min(MAX_SPAN);
         self
     }
     /// Sets the lease a worker holds on a task.
     pub fn lease(mut self, lease: Duration) -> Self {
-        self.lease = lease.max(MIN_LEASE);
+        self.lease = lease.clamp(MIN_LEASE, MAX_SPAN);
         self
     }
     /// Sets the idle worker's polling interval.

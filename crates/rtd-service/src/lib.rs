@@ -35,7 +35,7 @@ mod worker;
 pub use api::{router, AppState};
 pub use config::{
     ServiceConfig, DEFAULT_KEEP, DEFAULT_MAX_QUEUED, DEFAULT_MAX_UPLOAD, DEFAULT_SPP, MAX_ATTEMPTS, MAX_COMMENT_CHARS,
-    MAX_RANGES_PER_JOB, MAX_TEXT_FIELD_CHARS, MIN_LEASE,
+    MAX_RANGES_PER_JOB, MAX_SPAN, MAX_TEXT_FIELD_CHARS, MIN_LEASE,
 };
 pub use database::{now_ms, redact, sqlite_url, Backend, Database};
 pub use dataset_job::{DatasetJob, DatasetRun, QUEUE_FILE};

@@ -257,7 +257,7 @@ pub struct LightsArgs {
     /// into the output directory).
     pub scene: Option<PathBuf>,
     /// Seconds each strategy renders for.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
     pub seconds: f64,
     /// Reference samples per pixel.
     #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..=1 << 20))]

@@ -25,9 +25,6 @@ pub fn bench(args: &BenchArgs) -> anyhow::Result<()> {
 }
 
 fn lights(args: &LightsArgs) -> anyhow::Result<()> {
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        anyhow::bail!("--seconds {} is not a positive number of seconds", args.seconds);
-    }
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     use rtd_bench::procedural::{write_scene, Family};
