@@ -93,7 +93,7 @@ fn corpus(target: &str, dir: &Path) -> Vec<Vec<u8>> {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let cornell = std::fs::read_to_string(repo.join("scenes/cornell-box.gltf")).unwrap();
     let mut seeds = match target {
-        "gltf" => vec![cornell.clone().into_bytes(), textured_gltf(&cornell, dir)],
+        "gltf" => vec![cornell.clone().into_bytes(), textured_gltf(&cornell, dir), nested_gltf(&cornell)],
         "glb" => vec![glb(&cornell)],
         "obj" => vec![OBJ.as_bytes().to_vec()],
         "mtl" => vec![MTL.as_bytes().to_vec()],
@@ -162,6 +162,30 @@ fn textured_gltf(cornell: &str, _dir: &Path) -> Vec<u8> {
     doc["images"] = serde_json::json!([{ "uri": format!("data:image/png;base64,{png}") }]);
     doc["textures"] = serde_json::json!([{ "source": 0 }]);
     doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = serde_json::json!({ "index": 0 });
+    serde_json::to_vec(&doc).unwrap()
+}
+
+/// The Cornell box as a node hierarchy: its nodes under a transformed root with a camera and
+/// a punctual light, and a second scene, so that mutations reach the node walk (`children`,
+/// transforms, camera and light references) and the scene choice.
+fn nested_gltf(cornell: &str) -> Vec<u8> {
+    let mut doc: serde_json::Value = serde_json::from_str(cornell).unwrap();
+    let roots = doc["scenes"][0]["nodes"].clone();
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    let root = nodes.len();
+    nodes.push(
+        serde_json::json!({"name": "root", "children": roots, "rotation": [0, 0.38, 0, 0.92], "scale": [1, 2, 1]}),
+    );
+    nodes.push(serde_json::json!({"camera": 0, "translation": [0, 1, 4], "children": [root + 2]}));
+    nodes.push(serde_json::json!({"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0, 1.5, 0]}));
+    doc["scenes"] = serde_json::json!([{"nodes": [root, root + 1]}, {"name": "empty", "nodes": []}]);
+    doc["scene"] = serde_json::json!(0);
+    doc["cameras"] =
+        serde_json::json!([{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.1, "aspectRatio": 1.5}}]);
+    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [
+        {"type": "spot", "intensity": 40, "color": [1, 0.9, 0.8], "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}}
+    ]}});
+    doc["extensionsUsed"].as_array_mut().unwrap().push(serde_json::json!("KHR_lights_punctual"));
     serde_json::to_vec(&doc).unwrap()
 }
 
@@ -396,6 +420,22 @@ fn fuzz(target: &Target, budget: Budget, seed: u64) -> Campaign {
     campaign.contained = rtd::image::contained_panics() - contained_before;
     (campaign.wall, campaign.cpu) = (start.elapsed().as_secs_f64(), process_cpu_seconds() - cpu_start);
     campaign
+}
+
+/// The glTF seeds are valid scenes (a mutation of a file refused outright reaches little), and
+/// the nested one reaches the node walk's camera (the box has one of its own) and light.
+#[test]
+fn the_gltf_seeds_load() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, seed) in corpus("gltf", dir.path()).iter().take(3).enumerate() {
+        let path = dir.path().join(format!("seed{i}.gltf"));
+        std::fs::write(&path, seed).unwrap();
+        let scene = rtd::scene::load_scene(&path).unwrap_or_else(|e| panic!("seed {i}: {e}"));
+        assert!(!scene.triangles.is_empty());
+        if i == 2 {
+            assert_eq!((scene.cameras.len(), scene.lights.len()), (2, 1), "{:?}", scene.warnings);
+        }
+    }
 }
 
 #[test]

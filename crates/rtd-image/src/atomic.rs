@@ -100,6 +100,18 @@ pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Resul
 
 /// Flushes a directory's entries to disk, so a rename in it survives a power cut. Where the
 /// platform cannot open a directory as a file this does nothing.
+/// Creates `dir` and any missing parents durably: each new directory's entry is flushed to disk
+/// (`fsync` of the folder that holds it), so a file later written inside cannot outlive, after
+/// a power cut, the directory entry that leads to it.
+pub fn create_dir_durably(dir: &Path) -> std::io::Result<()> {
+    let missing: Vec<&Path> = dir.ancestors().take_while(|d| !d.as_os_str().is_empty() && !d.exists()).collect();
+    std::fs::create_dir_all(dir)?;
+    for created in missing.iter().rev() {
+        sync_dir(parent_dir(created))?;
+    }
+    Ok(())
+}
+
 fn sync_dir(dir: &Path) -> std::io::Result<()> {
     #[cfg(unix)]
     {

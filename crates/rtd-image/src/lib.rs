@@ -31,7 +31,7 @@ mod progress;
 mod rgbe;
 mod sniff;
 
-pub use atomic::{parent_dir, remove_orphans_once, write_atomic, write_bytes_atomic, write_json};
+pub use atomic::{create_dir_durably, parent_dir, remove_orphans_once, write_atomic, write_bytes_atomic, write_json};
 pub use error::ImageError;
 pub use exr_io::{encode_exr, read_exr, write_exr, Layers};
 pub use format::ImageFormat;

@@ -281,7 +281,7 @@ pub fn train(
     progress: &dyn Progress,
 ) -> Result<TrainState, TrainError> {
     options.validate(data, &Manifest::load(data)?)?;
-    std::fs::create_dir_all(out).map_err(|e| TrainError::io(out, e))?;
+    rtd_image::create_dir_durably(out).map_err(|e| TrainError::io(out, e))?;
     let files = RunFiles::new(out);
     let device = Device::flex().autodiff();
     device.seed(options.seed);
@@ -459,7 +459,8 @@ fn checkpoint(
     state: &TrainState,
 ) -> Result<(), TrainError> {
     let dir = files.checkpoint(state.step);
-    std::fs::create_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
+    // Durably: `state.json` will name this folder, so its entry must reach the disk first.
+    rtd_image::create_dir_durably(&dir).map_err(|e| TrainError::io(&dir, e))?;
     let (weights_path, optimizer_path) = (dir.join("weights.bpk"), dir.join("optimizer.bpk"));
     let weights = net.clone().into_record().into_bytes().map_err(|e| TrainError::msg(&weights_path, e.to_string()))?;
     save_record(&weights_path, &weights)?;

@@ -183,7 +183,7 @@ impl Manifest {
     /// there is none; a dataset made with any other options is refused. A new one is saved at
     /// once, so `dir` is claimed for `options`.
     pub fn open(dir: &Path, options: &DatasetOptions) -> Result<Manifest, TrainError> {
-        std::fs::create_dir_all(dir.join("scenes")).map_err(|e| TrainError::io(dir, e))?;
+        rtd_image::create_dir_durably(&dir.join("scenes")).map_err(|e| TrainError::io(dir, e))?;
         match Manifest::load(dir) {
             Ok(m) if m.options == *options => Ok(m),
             Ok(mut m) if m.options.scenes < options.scenes && m.options == options.clone().scenes(m.options.scenes) => {
@@ -254,7 +254,7 @@ impl Manifest {
             }
             ViewRender::Kept { exr, reference_spp, reference_relmse } => {
                 let file = view_file(scene, rendered.view);
-                std::fs::create_dir_all(dir.join("views")).map_err(|e| TrainError::io(dir, e))?;
+                rtd_image::create_dir_durably(&dir.join("views")).map_err(|e| TrainError::io(dir, e))?;
                 rtd_image::write_bytes_atomic(&dir.join(&file), exr)?;
                 self.views.push(ViewRecord {
                     file,

@@ -97,7 +97,7 @@ fn min_max(v: &[Vec3]) -> (Value, Value) {
 impl GenScene {
     /// Writes `dir/name.gltf`, `dir/name.bin` and `dir/name_texN.png`.
     pub fn write(&self, dir: &Path, name: &str) -> Result<(), TrainError> {
-        std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
+        rtd_image::create_dir_durably(dir).map_err(|e| TrainError::io(dir, e))?;
         let Geometry { bin, views, accessors, meshes, mut nodes } = self.geometry();
         for (object, offset) in &self.instances {
             nodes.push(json!({"mesh": object, "translation": offset.to_array()}));
