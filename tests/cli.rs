@@ -143,6 +143,10 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["bench", "lights", "-o", o, "--seconds", "1e20"]), "--seconds");
     assert_fails(&rtd(&["worker", "--database", "sqlite://x.db", "--lease", "9223372036854775807ms"]), "--lease");
     assert_fails(&rtd(&["serve", "--keep", "300000000000000ms"]), "--keep");
+    assert_fails(
+        &rtd(&["bench", "scaling", "-o", o, "--point", "texture=4000000000"]),
+        "texture 4000000000 is outside",
+    );
     // Refreshing a dataset's guides keeps its own generation settings.
     for (flag, value) in
         [("--scenes", "3"), ("--size", "64"), ("--seed", "2"), ("--views", "1"), ("--reference-spp", "8")]

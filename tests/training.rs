@@ -163,6 +163,40 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     }
 }
 
+/// A damaged checkpoint (disk error, a copy cut short) stops a resume with an error naming the
+/// file, not a panic in burn's record reader.
+#[test]
+fn a_damaged_checkpoint_is_named_when_resuming() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    tiny_dataset(&data);
+    let options = TrainOptions::default().config(tiny_config()).batch(2, 16).steps(4).epoch_steps(2);
+    // Stopped after the first epoch (2 steps), which leaves a checkpoint.
+    struct StopAt2(std::sync::atomic::AtomicU64);
+    impl rtd::image::Progress for StopAt2 {
+        fn inc(&self, n: u64) {
+            self.0.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
+        }
+        fn cancelled(&self) -> bool {
+            self.0.load(std::sync::atomic::Ordering::SeqCst) >= 2
+        }
+    }
+    let run = dir.path().join("run");
+    let partial = train(&data, &run, &options, false, &StopAt2(0.into())).unwrap();
+    assert_eq!(partial.step, 2);
+    let checkpoint = run.join(format!("checkpoints/{:08}", partial.step));
+    for (file, bytes) in [("weights.bpk", &b"\x00not burnpack"[..]), ("optimizer.bpk", &b""[..])] {
+        let path = checkpoint.join(file);
+        let whole = std::fs::read(&path).unwrap();
+        std::fs::write(&path, bytes).unwrap();
+        let e = train(&data, &run, &options, true, &Quiet).err().expect("a damaged checkpoint must be refused");
+        assert!(e.to_string().starts_with(&path.display().to_string()), "{e}");
+        assert!(!e.to_string().contains('\n'), "{e}");
+        std::fs::write(&path, whole).unwrap();
+    }
+    assert_eq!(train(&data, &run, &options, true, &Quiet).unwrap().step, 4, "the mended run resumes");
+}
+
 #[test]
 fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let dir = tempfile::tempdir().unwrap();

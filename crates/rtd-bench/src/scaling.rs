@@ -69,6 +69,18 @@ impl Axis {
         all.iter().copied().take(if quick { 2 } else { all.len() }).collect()
     }
 
+    /// The values a single point (`rtd bench scaling --point AXIS=VALUE`) may take: past these
+    /// a generated scene would not fit the machines rtd targets, or its image rtd's limits.
+    pub fn range(self) -> std::ops::RangeInclusive<u64> {
+        match self {
+            Axis::Triangles => 1..=20_000_000,
+            Axis::Lights => 1..=100_000,
+            Axis::Resolution => 1..=rtd_image::MAX_PIXELS as u64,
+            Axis::Texture => 1..=rtd_image::MAX_DIMENSION as u64,
+            Axis::Spp => 1..=rtd_render::MAX_SPP as u64,
+        }
+    }
+
     /// Render width and height at `value` (the resolution axis's own sizes, else 256²).
     pub fn size(self, value: u64) -> (u32, u32) {
         match (self, value) {

@@ -265,7 +265,7 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     if config.clone().with_input_channels(options.config.input_channels) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
-    let record = ModuleRecord::load(path).map_err(|e| TrainError::msg(path, e.to_string()))?;
+    let record = load_fenced(path, || ModuleRecord::load(path))?;
     let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
     Ok(if narrower { net.widen_input(options.config.input_channels) } else { net })
 }
@@ -316,15 +316,22 @@ fn start_or_resume(files: &RunFiles, options: &TrainOptions, resume: bool, devic
         return Err(TrainError::msg(&files.state, "was written with other training options"));
     }
     let (weights, optimizer) = (files.weights(state.step), files.optimizer(state.step));
-    let record = ModuleRecord::load(&weights).map_err(|e| TrainError::msg(&weights, e.to_string()))?;
+    let record = load_fenced(&weights, || ModuleRecord::load(&weights))?;
     let net =
         options.config.init(device).try_load_record(record).map_err(|e| TrainError::msg(&weights, e.to_string()))?;
-    let optim_record =
-        burn::optim::OptimizerRecord::load(&optimizer).map_err(|e| TrainError::msg(&optimizer, e.to_string()))?;
+    let optim_record = load_fenced(&optimizer, || burn::optim::OptimizerRecord::load(&optimizer))?;
     let optim = AdamConfig::new().init().load_record(optim_record);
     // A run killed between naming a checkpoint and removing the older ones left those behind.
     files.remove_all_but(state.step);
     Ok(Run { net, optim, state })
+}
+
+/// A record read from `path` by burn's reader, fenced as every parser of a file is (a damaged
+/// checkpoint must give an error naming it, not a panic).
+fn load_fenced<T, E: std::fmt::Display>(path: &Path, load: impl FnOnce() -> Result<T, E>) -> Result<T, TrainError> {
+    rtd_image::contain_panic(load)
+        .map_err(|e| TrainError::msg(path, e))?
+        .map_err(|e| TrainError::msg(path, e.to_string()))
 }
 
 /// Why a `state.json` cannot be resumed by this rtd, if it was written by an older one with a

@@ -57,13 +57,12 @@ fn lights(args: &LightsArgs) -> anyhow::Result<()> {
 }
 
 fn scaling(args: &ScalingArgs) -> anyhow::Result<()> {
-    use rtd_bench::scaling::{measure_point, run_scaling, Axis};
+    use rtd_bench::scaling::{measure_point, run_scaling};
+    // A point is checked before anything is made.
+    let point = args.point.as_deref().map(parse_point).transpose()?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create directory", args.output.display()))?;
-    if let Some(point) = &args.point {
-        let (axis, value) = point.split_once('=').context("--point takes AXIS=VALUE")?;
-        let axis = Axis::parse(axis).with_context(|| format!("unknown axis {axis:?}"))?;
-        let value: u64 = value.parse().with_context(|| format!("--point: {value:?} is not a whole number"))?;
+    if let Some((axis, value)) = point {
         let model = crate::args::DenoiserArgs { model: args.model.clone(), ensemble: 1 }.load()?;
         let p = measure_point(axis, value, &args.output, &model, args.runs as usize)?;
         return crate::print_line(&serde_json::to_string(&p)?);
@@ -75,6 +74,16 @@ fn scaling(args: &ScalingArgs) -> anyhow::Result<()> {
     bar.finish();
     crate::print_line(&report?.markdown())?;
     Ok(())
+}
+
+/// `AXIS=VALUE` of `--point`, with VALUE within the axis's range.
+fn parse_point(point: &str) -> anyhow::Result<(rtd_bench::scaling::Axis, u64)> {
+    let (axis, value) = point.split_once('=').context("--point takes AXIS=VALUE")?;
+    let axis = rtd_bench::scaling::Axis::parse(axis).with_context(|| format!("unknown axis {axis:?}"))?;
+    let value: u64 = value.parse().with_context(|| format!("--point: {value:?} is not a whole number"))?;
+    let range = axis.range();
+    anyhow::ensure!(range.contains(&value), "--point: {} {value} is outside {range:?}", axis.name());
+    Ok((axis, value))
 }
 
 fn scenes(args: &ScenesArgs) -> anyhow::Result<()> {
