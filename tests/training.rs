@@ -189,7 +189,7 @@ fn a_damaged_checkpoint_is_named_when_resuming() {
         let path = checkpoint.join(file);
         let whole = std::fs::read(&path).unwrap();
         std::fs::write(&path, bytes).unwrap();
-        let e = train(&data, &run, &options, true, &Quiet).err().expect("a damaged checkpoint must be refused");
+        let e = train(&data, &run, &options, true, &Quiet).expect_err("a damaged checkpoint must be refused");
         assert!(e.to_string().starts_with(&path.display().to_string()), "{e}");
         assert!(!e.to_string().contains('\n'), "{e}");
         std::fs::write(&path, whole).unwrap();
