@@ -141,8 +141,11 @@ fn bad_arguments_fail_cleanly() {
     // a panic in Duration; an i64::MAX-ms lease overflowed the queue's clock).
     assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "99999999999"]), "--spp");
     assert_fails(&rtd(&["bench", "lights", "-o", o, "--seconds", "1e20"]), "--seconds");
-    assert_fails(&rtd(&["worker", "--database", "sqlite://x.db", "--lease", "9223372036854775807ms"]), "--lease");
-    assert_fails(&rtd(&["serve", "--keep", "300000000000000ms"]), "--keep");
+    // (A database and a data folder that cannot be opened, so that a regression fails rather
+    // than starting a worker or a server that runs for ever.)
+    let worker = ["worker", "--database", "sqlite:///dev/null/x.db", "--lease", "9223372036854775807ms"];
+    assert_fails(&rtd(&worker), "--lease");
+    assert_fails(&rtd(&["serve", "--data", "/dev/null/rtd-data", "--keep", "300000000000000ms"]), "--keep");
     assert_fails(
         &rtd(&["bench", "scaling", "-o", o, "--point", "texture=4000000000"]),
         "texture 4000000000 is outside",
@@ -308,7 +311,7 @@ fn nan_vertices_fail_the_render_and_degenerate_triangles_are_skipped_with_a_warn
     assert_fails(&o, "inf.obj: 2 triangles have NaN or infinite vertex positions");
     // A face naming a vertex the file does not have.
     let o = render("index.obj", "o Box\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
-    assert_fails(&o, "index.obj: ");
+    assert_fails(&o, "index.obj: cannot load OBJ: face vertex index out of bounds");
     assert!(!out.exists(), "an output was written for a refused scene");
 }
 

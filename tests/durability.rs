@@ -15,7 +15,8 @@ fn syscalls(trace_dir: &Path, args: &[&str]) -> Vec<String> {
     let strace = std::env::var("RTD_TEST_STRACE").unwrap_or_else(|_| "strace".into());
     let trace = trace_dir.join("trace.txt");
     let out = Command::new(&strace)
-        .args(["-f", "-y", "-o", trace.to_str().unwrap(), "-e", "trace=fsync,fdatasync,rename,renameat,renameat2"])
+        .args(["-f", "--seccomp-bpf", "-y", "-o", trace.to_str().unwrap()])
+        .args(["-e", "trace=fsync,fdatasync,rename,renameat,renameat2"])
         .arg(env!("CARGO_BIN_EXE_rtd"))
         .args(args)
         .output()
@@ -37,11 +38,13 @@ fn fd_path(call: &str) -> Option<&str> {
 
 #[test]
 fn a_render_is_flushed_before_its_rename_and_its_directory_after() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out.exr");
+    let tmp = tempfile::tempdir().unwrap();
+    // strace shows paths as the kernel resolves them.
+    let dir = tmp.path().canonicalize().unwrap();
+    let out = dir.join("out.exr");
     let cornell = common::cli::cornell_path();
     let args = ["render", &cornell, "-o", out.to_str().unwrap(), "--spp", "1", "--width", "8", "--height", "8", "-q"];
-    let calls = syscalls(dir.path(), &args);
+    let calls = syscalls(&dir, &args);
     let final_name = format!("\"{}\"", out.display());
     let renamed = calls
         .iter()
@@ -55,7 +58,7 @@ fn a_render_is_flushed_before_its_rename_and_its_directory_after() {
         calls[..renamed].iter().any(|c| synced(c, &temp)),
         "the data was not flushed before the rename: {calls:#?}"
     );
-    let dir_path = dir.path().display().to_string();
+    let dir_path = dir.display().to_string();
     assert!(
         calls[renamed + 1..].iter().any(|c| synced(c, &dir_path)),
         "the directory was not flushed after the rename: {calls:#?}"
@@ -66,15 +69,16 @@ fn a_render_is_flushed_before_its_rename_and_its_directory_after() {
 /// of the folder that holds it) before any file inside it is renamed into place.
 #[test]
 fn a_new_folder_is_flushed_before_files_are_renamed_into_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let nested = dir.path().join("a").join("b");
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().canonicalize().unwrap();
+    let nested = dir.join("a").join("b");
     rtd::image::create_dir_durably(&nested).unwrap();
     assert!(nested.is_dir());
     // The same call on an existing folder is a no-op and succeeds.
     rtd::image::create_dir_durably(&nested).unwrap();
     // Through the binary: a one-step training run writes its checkpoint folder under `run/`.
-    let data = dir.path().join("data");
-    let (d, r) = (data.to_str().unwrap(), dir.path().join("run"));
+    let data = dir.join("data");
+    let (d, r) = (data.to_str().unwrap(), dir.join("run"));
     let datagen = ["datagen", "-o", d, "--scenes", "2", "--views", "1", "--size", "32", "--reference-spp", "16", "-q"];
     let made = Command::new(env!("CARGO_BIN_EXE_rtd")).args(datagen).output().unwrap();
     assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
@@ -82,7 +86,7 @@ fn a_new_folder_is_flushed_before_files_are_renamed_into_it() {
     let steps = ["--steps", "2", "--epoch-steps", "2", "--batch", "2", "--crop", "16", "-q"];
     let mut args = vec!["train", "--data", d, "-o", r.to_str().unwrap()];
     args.extend(steps);
-    let calls = syscalls(dir.path(), &args);
+    let calls = syscalls(&dir, &args);
     let checkpoints = run.join("checkpoints").display().to_string();
     let first_rename_inside = calls
         .iter()
@@ -92,4 +96,6 @@ fn a_new_folder_is_flushed_before_files_are_renamed_into_it() {
         |path: &str| calls[..first_rename_inside].iter().any(|c| c.starts_with("fsync") && fd_path(c) == Some(path));
     assert!(synced(&checkpoints), "{checkpoints} was not flushed before files went in: {calls:#?}");
     assert!(synced(&run.display().to_string()), "the run folder was not flushed: {calls:#?}");
+    // The run folder's own entry, in the folder that holds it.
+    assert!(synced(&dir.display().to_string()), "{} was not flushed when run/ was made: {calls:#?}", dir.display());
 }

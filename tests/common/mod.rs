@@ -6,6 +6,7 @@ use rtd::render::{Film, PathTracer, RenderScene, RenderSettings};
 use rtd::scene::{Camera, Environment, Material, Scene, Triangle};
 
 pub mod cli;
+pub mod gltf;
 
 /// A material with the given base colour, roughness, metallic and transmission.
 pub fn material(color: Vec3, roughness: f32, metallic: f32, transmission: f32) -> Material {

@@ -37,6 +37,12 @@ pub enum Axis {
     Spp,
 }
 
+/// Most triangles of a generated point: the 10M-triangle extreme peaks at 3.5 GiB, so twice
+/// that stays well inside 24 GiB.
+pub const MAX_POINT_TRIANGLES: u64 = 20_000_000;
+/// Most emitters of a generated point (the sweep's largest is 10k).
+pub const MAX_POINT_LIGHTS: u64 = 100_000;
+
 impl Axis {
     /// Every axis, in report order.
     pub const ALL: [Axis; 5] = [Axis::Triangles, Axis::Lights, Axis::Resolution, Axis::Texture, Axis::Spp];
@@ -69,12 +75,14 @@ impl Axis {
         all.iter().copied().take(if quick { 2 } else { all.len() }).collect()
     }
 
-    /// The values a single point (`rtd bench scaling --point AXIS=VALUE`) may take: past these
-    /// a generated scene would not fit the machines rtd targets, or its image rtd's limits.
+    /// The values a single point (`rtd bench scaling --point AXIS=VALUE`) may take, so that a
+    /// generated scene fits the 24 GiB machines rtd targets. A texture side up to
+    /// [`rtd_image::MAX_DIMENSION`] is generated, so that the documented 16384² extreme can be
+    /// run: the loader then refuses any over [`rtd_image::MAX_PIXELS`], with a one-line error.
     pub fn range(self) -> std::ops::RangeInclusive<u64> {
         match self {
-            Axis::Triangles => 1..=20_000_000,
-            Axis::Lights => 1..=100_000,
+            Axis::Triangles => 1..=MAX_POINT_TRIANGLES,
+            Axis::Lights => 1..=MAX_POINT_LIGHTS,
             Axis::Resolution => 1..=rtd_image::MAX_PIXELS as u64,
             Axis::Texture => 1..=rtd_image::MAX_DIMENSION as u64,
             Axis::Spp => 1..=rtd_render::MAX_SPP as u64,

@@ -98,8 +98,6 @@ pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Resul
     write_bytes_atomic(path, &bytes)
 }
 
-/// Flushes a directory's entries to disk, so a rename in it survives a power cut. Where the
-/// platform cannot open a directory as a file this does nothing.
 /// Creates `dir` and any missing parents durably: each new directory's entry is flushed to disk
 /// (`fsync` of the folder that holds it), so a file later written inside cannot outlive, after
 /// a power cut, the directory entry that leads to it.
@@ -112,6 +110,8 @@ pub fn create_dir_durably(dir: &Path) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Flushes a directory's entries to disk, so a rename in it survives a power cut. Where the
+/// platform cannot open a directory as a file this does nothing.
 fn sync_dir(dir: &Path) -> std::io::Result<()> {
     #[cfg(unix)]
     {

@@ -179,7 +179,8 @@ impl NodeVisitor<'_> {
         let mut seen = std::collections::HashSet::new();
         while let Some((node, parent)) = stack.pop() {
             if !seen.insert(node.index()) {
-                let message = format!("node {} is reached twice: nodes must form trees, without cycles", node.index());
+                let message =
+                    format!("node {} has two parents or lies in a cycle: glTF nodes must form trees", node.index());
                 return Err(SceneError::new(self.path, message));
             }
             let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());

@@ -113,7 +113,8 @@ impl DatasetJob {
     /// An exclusive lock on the directory for this run: two coordinators gathering into one
     /// dataset would each save their own manifest over the other's.
     fn lock_dir(&self) -> Result<std::fs::File, ServiceError> {
-        std::fs::create_dir_all(&self.dir)
+        // Durably: the manifest written into it names this folder's views.
+        rtd_image::create_dir_durably(&self.dir)
             .map_err(|e| ServiceError::io(format!("{}: cannot create", self.dir.display()), e))?;
         let path = self.lock_file();
         let file = std::fs::OpenOptions::new()

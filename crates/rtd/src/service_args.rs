@@ -73,7 +73,10 @@ pub struct NodeArgs {
 fn parse_duration(s: &str) -> Result<Duration, String> {
     match humantime::parse_duration(s) {
         Ok(d) if d > Duration::ZERO && d <= rtd_service::MAX_SPAN => Ok(d),
-        _ => Err(format!("'{s}' is not a duration from 1ms to 3650d, such as 30s, 12h or 7d")),
+        _ => {
+            let days = rtd_service::MAX_SPAN.as_secs() / 86_400;
+            Err(format!("'{s}' is not a positive duration of at most {days}d, such as 30s, 12h or 7d"))
+        }
     }
 }
 

@@ -55,7 +55,7 @@ pub fn serve(args: &ServeArgs) -> anyhow::Result<()> {
     let (url, workers) = match &args.database {
         Some(url) => (url.clone(), args.workers.unwrap_or(0)),
         None => {
-            std::fs::create_dir_all(&args.data)
+            rtd_image::create_dir_durably(&args.data)
                 .map_err(|e| anyhow::anyhow!("{}: cannot create the data folder: {e}", args.data.display()))?;
             (sqlite_url(&args.data), args.workers.unwrap_or(1))
         }
