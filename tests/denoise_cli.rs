@@ -153,7 +153,7 @@ fn denoise_bad_inputs_fail_cleanly_without_output() {
     // A decompression bomb: 45 bytes of PNG declaring 16000 x 16000 (each side allowed, 256 Mpx
     // and 768 MB in all), refused from its header before anything is decoded.
     let bomb = d.join("bomb.png");
-    std::fs::write(&bomb, png_header(16000, 16000)).unwrap();
+    std::fs::write(&bomb, common::bomb::png_bomb(16000, 16000)).unwrap();
     let o = rtd(&["denoise", "--color", s(&bomb), "--guide", s(&a), "-o", s(&out)]);
     assert_fails(&o, &format!("{}: image size 16000x16000 exceeds", bomb.display()));
     assert!(!out.exists(), "no output may be written");
@@ -196,31 +196,4 @@ fn denoise_ensemble_is_the_librarys_and_is_reported() {
     let out = dir.path().join("o9.exr");
     assert_fails(&rtd(&["denoise", "--color", s(&noisy), "--guide", s(&noisy), "--ensemble", "9", "-o", s(&out)]), "9");
     assert!(!out.exists());
-}
-
-/// A PNG (signature, IHDR, empty IDAT) declaring `w` x `h` at 8-bit RGB, with no pixel data.
-fn png_header(w: u32, h: u32) -> Vec<u8> {
-    // CRC-32 (IEEE, reflected) of a chunk's type and data, as PNG requires.
-    let crc32 = |data: &[u8]| {
-        let mut c = !0u32;
-        for &b in data {
-            c ^= b as u32;
-            for _ in 0..8 {
-                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
-            }
-        }
-        !c
-    };
-    let mut ihdr = b"IHDR".to_vec();
-    ihdr.extend(w.to_be_bytes());
-    ihdr.extend(h.to_be_bytes());
-    ihdr.extend([8, 2, 0, 0, 0]);
-    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
-    png.extend(13u32.to_be_bytes());
-    png.extend(&ihdr);
-    png.extend(crc32(&ihdr).to_be_bytes());
-    png.extend(0u32.to_be_bytes());
-    png.extend(b"IDAT");
-    png.extend(crc32(b"IDAT").to_be_bytes());
-    png
 }

@@ -3,10 +3,12 @@
 //! render, every refusal is a 4xx with one JSON sentence and stores nothing, and queued work
 //! survives restarts and shutdowns.
 
+mod common;
 mod service_support;
 
 use std::time::Duration;
 
+use common::bomb::png_bomb;
 use rtd::service::{execute, Database, JobKey, JobQueue, JobStore, TaskInputs, TaskOutput, TaskProgress};
 use service_support::*;
 use sqlx::Row;

@@ -125,6 +125,27 @@ fn quick_training_lowers_the_loss_and_writes_a_model_and_curves() {
     assert!(rtd::denoise::Denoiser::load(&out.join("model.bpk")).is_ok());
 }
 
+/// Progress that asks training to stop once `limit` steps are done (a user's Ctrl-C, on cue).
+struct StopAt {
+    done: std::sync::atomic::AtomicU64,
+    limit: u64,
+}
+
+impl StopAt {
+    fn steps(limit: u64) -> Self {
+        StopAt { done: 0.into(), limit }
+    }
+}
+
+impl rtd::image::Progress for StopAt {
+    fn inc(&self, n: u64) {
+        self.done.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
+    }
+    fn cancelled(&self) -> bool {
+        self.done.load(std::sync::atomic::Ordering::SeqCst) >= self.limit
+    }
+}
+
 #[test]
 fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -135,17 +156,8 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     let b = train(&data, &dir.path().join("b"), &options, false, &Quiet).unwrap();
     assert_eq!(a.losses, b.losses, "same seed, same losses");
     // Stop after the first epoch (3 steps), then resume.
-    struct StopAt(std::sync::atomic::AtomicU64);
-    impl rtd::image::Progress for StopAt {
-        fn inc(&self, n: u64) {
-            self.0.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
-        }
-        fn cancelled(&self) -> bool {
-            self.0.load(std::sync::atomic::Ordering::SeqCst) >= 3
-        }
-    }
     let c_dir = dir.path().join("c");
-    let partial = train(&data, &c_dir, &options, false, &StopAt(0.into())).unwrap();
+    let partial = train(&data, &c_dir, &options, false, &StopAt::steps(3)).unwrap();
     assert_eq!(partial.step, 3);
     assert!(train(&data, &c_dir, &options, false, &Quiet).is_err(), "an existing run needs --resume");
     let resumed = train(&data, &c_dir, &options, true, &Quiet).unwrap();
@@ -172,17 +184,8 @@ fn a_damaged_checkpoint_is_named_when_resuming() {
     tiny_dataset(&data);
     let options = TrainOptions::default().config(tiny_config()).batch(2, 16).steps(4).epoch_steps(2);
     // Stopped after the first epoch (2 steps), which leaves a checkpoint.
-    struct StopAt2(std::sync::atomic::AtomicU64);
-    impl rtd::image::Progress for StopAt2 {
-        fn inc(&self, n: u64) {
-            self.0.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
-        }
-        fn cancelled(&self) -> bool {
-            self.0.load(std::sync::atomic::Ordering::SeqCst) >= 2
-        }
-    }
     let run = dir.path().join("run");
-    let partial = train(&data, &run, &options, false, &StopAt2(0.into())).unwrap();
+    let partial = train(&data, &run, &options, false, &StopAt::steps(2)).unwrap();
     assert_eq!(partial.step, 2);
     let checkpoint = run.join(format!("checkpoints/{:08}", partial.step));
     for (file, bytes) in [("weights.bpk", &b"\x00not burnpack"[..]), ("optimizer.bpk", &b""[..])] {

@@ -5,6 +5,7 @@ use glam::{Vec2, Vec3};
 use rtd::render::{Film, PathTracer, RenderScene, RenderSettings};
 use rtd::scene::{Camera, Environment, Material, Scene, Triangle};
 
+pub mod bomb;
 pub mod cli;
 pub mod gltf;
 
