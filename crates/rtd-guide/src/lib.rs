@@ -10,6 +10,8 @@
 #![warn(missing_docs)]
 
 mod ao;
+mod bins;
+mod projection;
 pub mod raster;
 mod sample_grid;
 
@@ -341,7 +343,7 @@ impl GuidePass {
             .zip(centre.chunks_mut(rows))
             .map(|(((albedo, normal), depth), centre)| Band { albedo, normal, depth, centre })
             .collect();
-        let bounds = raster::scene_bounds(scene);
+        let bounds = bvh.scene_bounds();
         raster::rasterize(scene, &bounds, camera, w, h, bands, |band, i, px, footprints| {
             let s = shade(px, footprints);
             (band.albedo[i], band.normal[i], band.depth[i], band.centre[i]) = (s.albedo, s.normal, s.depth, s.centre);

@@ -9,13 +9,12 @@
 
 use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
-use rtd_scene::{Aabb, AlphaMode, Camera, Projection, Scene};
+use rtd_scene::{Aabb, AlphaMode, Camera, Scene};
 
-use crate::sample_grid::{covers_a_sample, sample_fractions};
+use crate::bins::Bins;
+pub use crate::bins::TILE;
+use crate::projection::{drawable, signed_area, Projector, ScreenTri};
 pub use crate::sample_grid::{sample_offsets, SAMPLES, SAMPLES_1D};
-
-/// Tile side in pixels.
-pub const TILE: u32 = 16;
 
 /// What one sample sees.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,188 +54,7 @@ impl Footprints<'_> {
     }
 }
 
-/// A projected, clipped triangle.
-#[derive(Debug, Clone, Copy)]
-struct ScreenTri {
-    /// Screen x, y in pixels and the depth key (1/z for perspective, z for orthographic).
-    v: [Vec3; 3],
-    /// 1/z per vertex for perspective-correct interpolation (1 for orthographic).
-    w: [f32; 3],
-    /// Barycentrics of each vertex in the original triangle.
-    b: [Vec3A; 3],
-    /// Screen gradients of the screen-space barycentrics: ∂e0/∂x, ∂e0/∂y, ∂e1/∂x, ∂e1/∂y.
-    grad: [f32; 4],
-    triangle: u32,
-    /// The scene triangle's material (kept here: reading it from the triangle is a cache miss
-    /// per triangle on a mesh of millions).
-    material: u32,
-}
-
-/// Camera-space coordinates (x right, y up, z forward) of a world point.
-#[inline]
-fn to_camera(cam: &Camera, p: Vec3) -> Vec3 {
-    let d = p - cam.position;
-    Vec3::new(d.dot(cam.right), d.dot(cam.up), d.dot(cam.forward))
-}
-
-/// A camera-space triangle clipped against the near plane: up to 4 (position, barycentrics)
-/// vertices, `len` of them used.
-#[derive(Clone, Copy)]
-struct Clipped {
-    v: [(Vec3, Vec3); 4],
-    len: usize,
-}
-
-/// Clips a camera-space triangle against z ≥ near (Sutherland–Hodgman), carrying barycentrics.
-fn clip_near(tri: &[(Vec3, Vec3); 3], near: f32) -> Clipped {
-    let mut out = Clipped { v: [(Vec3::ZERO, Vec3::ZERO); 4], len: 0 };
-    let mut push = |v: (Vec3, Vec3)| {
-        out.v[out.len] = v;
-        out.len += 1;
-    };
-    for i in 0..3 {
-        let (a, ba) = tri[i];
-        let (b, bb) = tri[(i + 1) % 3];
-        let (ina, inb) = (a.z >= near, b.z >= near);
-        if ina {
-            push((a, ba));
-        }
-        if ina != inb {
-            let t = (near - a.z) / (b.z - a.z);
-            push((a.lerp(b, t), ba.lerp(bb, t)));
-        }
-    }
-    out
-}
-
-/// Twice the signed screen area of a triangle, in f64 (clipped vertices can project far off
-/// screen).
-#[inline]
-fn signed_area(v: &[Vec3; 3]) -> f64 {
-    let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
-    (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
-}
-
-/// Whether the rasteriser draws a triangle of this [`signed_area`]: not a degenerate or
-/// non-finite one. The one test both dropping a triangle early and drawing it use.
-#[inline]
-fn drawable(area: f64) -> bool {
-    area != 0.0 && area.is_finite()
-}
-
-/// Projects and clips every triangle (alpha-blended ones too: they are drawn as opaque, like the
-/// path tracer's first-hit AOVs), in parallel, keeping the scene's order, and drops those that
-/// cover no sample.
-fn setup(scene: &Scene, cam: &Camera, width: u32, height: u32, near: f32) -> Vec<ScreenTri> {
-    project_triangles(scene, cam, (width, height), near, true)
-}
-
-/// [`setup`], keeping the triangles that cover no sample when `drop_uncovering` is false (the
-/// tests draw both lists and compare).
-fn project_triangles(
-    scene: &Scene,
-    cam: &Camera,
-    (width, height): (u32, u32),
-    near: f32,
-    drop_uncovering: bool,
-) -> Vec<ScreenTri> {
-    let aspect = width as f32 / height as f32;
-    let (sx, sy, persp) = match cam.projection {
-        Projection::Perspective { yfov } => {
-            let t = (yfov * 0.5).tan();
-            (1.0 / (t * aspect), 1.0 / t, true)
-        }
-        Projection::Orthographic { ymag } => (1.0 / (ymag * aspect), 1.0 / ymag, false),
-    };
-    let to_screen = |c: Vec3| -> (Vec3, f32) {
-        let (nx, ny, w) = if persp { (c.x * sx / c.z, c.y * sy / c.z, 1.0 / c.z) } else { (c.x * sx, c.y * sy, 1.0) };
-        let key = if persp { 1.0 / c.z } else { -c.z };
-        (Vec3::new((nx + 1.0) * 0.5 * width as f32, (1.0 - ny) * 0.5 * height as f32, key), w)
-    };
-    let fractions = sample_fractions();
-    // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there,
-    // or the camera's own near clip).
-    let near = if persp { near } else { cam.znear };
-    // One triangle's screen triangles: none, one, or two (a clipped quad, fan-triangulated).
-    let project = |i: usize, t: &rtd_scene::Triangle| -> [Option<ScreenTri>; 2] {
-        let c = t.p.map(|p| to_camera(cam, p));
-        let base = [(c[0], Vec3::X), (c[1], Vec3::Y), (c[2], Vec3::Z)];
-        if c.iter().all(|v| v.z < near) {
-            return [None; 2];
-        }
-        let poly = if c.iter().all(|v| v.z >= near) {
-            Clipped { v: [base[0], base[1], base[2], base[2]], len: 3 }
-        } else {
-            clip_near(&base, near)
-        };
-        let proj = poly.v.map(|(c, b)| {
-            let (s, w) = to_screen(c);
-            (s, w, b)
-        });
-        std::array::from_fn(|k| {
-            let k = k + 1;
-            if k + 1 >= poly.len {
-                return None;
-            }
-            let tri = [proj[0], proj[k], proj[k + 1]];
-            let v = tri.map(|x| x.0);
-            if !v.iter().all(|p| p.is_finite()) || (drop_uncovering && !covers_a_sample(&v, width, height, &fractions))
-            {
-                return None;
-            }
-            // e0 = area(p, b, c) / area(a, b, c) and e1 = area(p, c, a) / area(a, b, c) are
-            // affine in screen (x, y); their gradients (in f64: clipped vertices can be far off).
-            let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
-            let area = signed_area(&v);
-            if drop_uncovering && !drawable(area) {
-                return None;
-            }
-            let grad =
-                [(b.1 - c.1) / area, (c.0 - b.0) / area, (c.1 - a.1) / area, (a.0 - c.0) / area].map(|g| g as f32);
-            let (w, b) = (tri.map(|x| x.1), tri.map(|x| x.2.into()));
-            Some(ScreenTri { v, w, b, grad, triangle: i as u32, material: t.material })
-        })
-    };
-    // Which of its two possible screen triangles each scene triangle gives (bit k: the k-th),
-    // then every screen triangle built straight into its place in the list. Projecting twice
-    // costs less than merging per-thread pieces: the list is written once, in parallel.
-    let present: Vec<u8> = scene
-        .triangles
-        .par_iter()
-        .enumerate()
-        .map(|(i, t)| {
-            // Most triangles of a dense mesh are whole in front of the eye and cover no sample:
-            // their screen box settles it, without building their screen triangles.
-            if drop_uncovering {
-                let c = t.p.map(|p| to_camera(cam, p));
-                if c.iter().all(|v| v.z >= near) {
-                    let v = c.map(|c| to_screen(c).0);
-                    if !v.iter().all(|p| p.is_finite()) || !covers_a_sample(&v, width, height, &fractions) {
-                        return 0;
-                    }
-                    // Unclipped, finite and covering a sample: one screen triangle unless it is
-                    // degenerate.
-                    return drawable(signed_area(&v)) as u8;
-                }
-            }
-            project(i, t).iter().enumerate().fold(0, |m, (k, s)| m | (s.is_some() as u8) << k)
-        })
-        .collect();
-    let slots: Vec<(u32, u8)> = present
-        .iter()
-        .enumerate()
-        .flat_map(|(i, &m)| (0..2u8).filter(move |k| m >> k & 1 == 1).map(move |k| (i as u32, k)))
-        .collect();
-    slots
-        .par_iter()
-        .map(|&(i, k)| {
-            let i = i as usize;
-            project(i, &scene.triangles[i])[k as usize].expect("projection is deterministic")
-        })
-        .collect()
-}
-
-/// Rasterises `scene` (whose bounding box is `bounds`, from [`scene_bounds`]) through `cam` and
+/// Rasterises `scene` (whose bounding box is `bounds`: [`Scene::bounds`]) through `cam` and
 /// calls `shade` with what each pixel's [`SAMPLES`] samples see (and their [`Footprints`]). The
 /// image is cut into bands of [`TILE`] rows: `bands` holds one output per band (top first, as many as `height.div_ceil(TILE)`), and
 /// `shade(band, i, samples, footprints)` stores pixel `i` of the band (row-major within it), so
@@ -252,47 +70,37 @@ where
     // The near plane sits far enough in front of the eye to keep 1/z well conditioned.
     let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
     let near = (far * 1e-6).max(f32::MIN_POSITIVE).max(cam.znear);
-    let tris = setup(scene, cam, width, height, near);
+    let proj = Projector::new(cam, (width, height), near);
     let offsets = sample_offsets();
     // How far a sample can lie from its pixel's centre, along x or y.
     let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
-    let footprints = Footprints { tris: &tris };
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
-    // Bin each triangle into the tiles its bounding box (grown by the 1-px filter radius) touches.
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
-    for (i, t) in tris.iter().enumerate() {
-        let lo = t.v[0].min(t.v[1]).min(t.v[2]);
-        let hi = t.v[0].max(t.v[1]).max(t.v[2]);
-        if hi.x < -1.0 || hi.y < -1.0 || lo.x > width as f32 + 1.0 || lo.y > height as f32 + 1.0 {
-            continue;
-        }
-        let tx0 = ((lo.x - 1.0).max(0.0) as u32 / TILE).min(tiles_x - 1);
-        let ty0 = ((lo.y - 1.0).max(0.0) as u32 / TILE).min(tiles_y - 1);
-        let tx1 = (((hi.x + 1.0).max(0.0) as u32) / TILE).min(tiles_x - 1);
-        let ty1 = (((hi.y + 1.0).max(0.0) as u32) / TILE).min(tiles_y - 1);
-        for ty in ty0..=ty1 {
-            for tx in tx0..=tx1 {
-                bins[(ty * tiles_x + tx) as usize].push(i as u32);
-            }
-        }
-    }
+    let bins = Bins::new(scene, &proj, (tiles_x, tiles_y));
     // One job per band (row of tiles), writing straight into the caller's outputs.
     bands.into_par_iter().enumerate().for_each(|(ty, mut band)| {
         let y0 = ty as u32 * TILE;
         let th = TILE.min(height - y0) as usize;
         let mut depth = vec![f32::NEG_INFINITY; TILE as usize * TILE as usize * SAMPLES];
         let mut cover = vec![Cover::NONE; TILE as usize * TILE as usize * SAMPLES];
+        // The screen triangles of the tile being drawn.
+        let mut tris: Vec<ScreenTri> = Vec::new();
         for tx in 0..tiles_x {
             let x0 = tx * TILE;
             let tw = TILE.min(width - x0) as usize;
             let n = tw * th * SAMPLES;
             depth[..n].fill(f32::NEG_INFINITY);
             cover[..n].fill(Cover::NONE);
-            for &i in &bins[(ty as u32 * tiles_x + tx) as usize] {
-                let tile = TileRect { x0, y0, w: tw, h: th };
-                raster_tri(scene, &tris, i, tile, &offsets, reach, (&mut depth[..n], &mut cover[..n]));
+            tris.clear();
+            let tile = TileRect { x0, y0, w: tw, h: th };
+            for &i in &bins.tiles[(ty as u32 * tiles_x + tx) as usize] {
+                for t in bins.screen_tris(&proj, i).into_iter().flatten() {
+                    tris.push(t);
+                    let index = tris.len() as u32 - 1;
+                    raster_tri(scene, &tris, index, tile, &offsets, reach, (&mut depth[..n], &mut cover[..n]));
+                }
             }
+            let footprints = Footprints { tris: &tris };
             for (k, px) in cover[..n].chunks(SAMPLES).enumerate() {
                 // Barycentrics only for the samples' final triangles.
                 let hits: [Option<SampleHit>; SAMPLES] = std::array::from_fn(|s| {
@@ -323,34 +131,6 @@ struct Cover {
 
 impl Cover {
     const NONE: Cover = Cover { tri: u32::MAX, e0: 0.0, e1: 0.0 };
-}
-
-impl ScreenTri {
-    /// Perspective-correct barycentrics in the original triangle at screen-space barycentrics
-    /// (e0, e1, 1 − e0 − e1).
-    #[inline]
-    fn bary(&self, e0: f32, e1: f32) -> Vec3 {
-        let (w0, w1, w2) = (e0 * self.w[0], e1 * self.w[1], (1.0 - e0 - e1) * self.w[2]);
-        // In SIMD lanes (Vec3A): one vector division instead of three, with the same results.
-        let b = &self.b;
-        ((b[0] * w0 + b[1] * w1 + b[2] * w2) / (w0 + w1 + w2)).into()
-    }
-}
-
-/// The scene's bounding box ([`Scene::bounds`]), over its triangles in parallel: a dense mesh
-/// has hundreds of megabytes of them. Minima and maxima are exact, so the box is the same.
-pub fn scene_bounds(scene: &Scene) -> Aabb {
-    let union = |mut a: Aabb, b: Aabb| {
-        a.grow(b.min);
-        a.grow(b.max);
-        a
-    };
-    let box_of = |t: &rtd_scene::Triangle| {
-        let mut b = Aabb::EMPTY;
-        t.p.iter().for_each(|&p| b.grow(p));
-        b
-    };
-    scene.triangles.par_iter().map(box_of).reduce(|| Aabb::EMPTY, union)
 }
 
 /// A tile of the image: its top-left pixel and its size.
@@ -475,6 +255,7 @@ fn raster_tri(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::projection::to_camera;
 
     /// A small deterministic generator for the tests' random inputs.
     fn lcg(state: &mut u64) -> f32 {
@@ -505,7 +286,10 @@ mod tests {
         let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
         let (w, h) = (40u32, 36u32);
         let draw = |drop: bool| {
-            let tris = project_triangles(&scene, &cam, (w, h), 1e-3, drop);
+            let proj = Projector::new(&cam, (w, h), 1e-3);
+            let tris: Vec<ScreenTri> = (scene.triangles.iter().enumerate())
+                .flat_map(|(i, t)| proj.project(i, t, drop).into_iter().flatten())
+                .collect();
             let n = (w * h) as usize * SAMPLES;
             let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; n], vec![Cover::NONE; n]);
             let offsets = sample_offsets();
@@ -521,7 +305,6 @@ mod tests {
                 .collect();
             (tris.len(), seen)
         };
-        assert_eq!(scene_bounds(&scene), scene.bounds(), "the parallel bounds are the serial ones");
         let (all, every) = draw(false);
         let (kept, dropped) = draw(true);
         assert!(kept * 2 < all, "most triangles cover no sample ({kept} of {all} kept)");
@@ -531,20 +314,76 @@ mod tests {
         assert_eq!(every, dropped, "the same triangle and depth at every sample");
     }
 
+    /// Binning into tiles and building screen triangles tile by tile (from the spans' vertices,
+    /// or once for clipped triangles) give every sample the triangle and barycentrics that
+    /// drawing every projected triangle into every tile gives.
     #[test]
-    fn near_clipping_keeps_barycentrics() {
-        let poly = [
-            (Vec3::new(0.0, 0.0, -1.0), Vec3::X),
-            (Vec3::new(0.0, 1.0, 1.0), Vec3::Y),
-            (Vec3::new(1.0, 0.0, 1.0), Vec3::Z),
-        ];
-        let out = clip_near(&poly, 0.0);
-        assert_eq!(out.len, 4);
-        for &(p, b) in &out.v[..out.len] {
-            assert!(p.z >= -1e-6);
-            let back = poly[0].0 * b.x + poly[1].0 * b.y + poly[2].0 * b.z;
-            assert!((back - p).length() < 1e-6, "barycentrics must reproduce the clipped point");
+    fn tiled_drawing_equals_one_pass_over_every_triangle() {
+        use rtd_scene::{Material, Triangle};
+        let mut scene = Scene::default();
+        scene.materials.push(Material::default());
+        let mut state = 11u64;
+        for _ in 0..20_000 {
+            let c = Vec3::new(lcg(&mut state) * 2.4 - 1.2, lcg(&mut state) * 2.4 - 1.2, -2.0 - lcg(&mut state));
+            let size = 0.002 + 0.3 * lcg(&mut state).powi(3);
+            let mut corner = || Vec3::new(lcg(&mut state) - 0.5, lcg(&mut state) - 0.5, lcg(&mut state) - 0.5) * size;
+            let p = [c + corner(), c + corner(), c + corner()];
+            scene.push_triangle(Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: 0 });
         }
+        // Two triangles clipped at the near plane (one gives a quad: two screen triangles).
+        for p in [
+            [Vec3::new(-2.0, 1.0, -3.0), Vec3::new(3.0, 1.0, -4.5), Vec3::new(0.5, 1.0, 5.0)],
+            [Vec3::new(-3.0, -1.0, -6.0), Vec3::new(0.5, -1.0, 4.0), Vec3::new(3.0, -1.0, 4.0)],
+        ] {
+            scene.push_triangle(Triangle { p, n: [Vec3::Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
+        }
+        let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
+        let (w, h) = (97u32, 61u32);
+        let bounds = scene.bounds();
+        let size = bounds.diagonal().length();
+        let near = (((bounds.center() - cam.position).length() + size) * 1e-6).max(cam.znear);
+        // Every projected triangle drawn into every tile (the edge functions are set up per
+        // tile, so the reference draws the same tiles), no binning.
+        let proj = Projector::new(&cam, (w, h), near);
+        let tris: Vec<ScreenTri> = (scene.triangles.iter().enumerate())
+            .flat_map(|(i, t)| proj.project(i, t, true).into_iter().flatten())
+            .collect();
+        assert!(tris.iter().filter(|t| t.triangle >= 20_000).count() == 3, "the clipped pair gives 3 triangles");
+        let n = (w * h) as usize * SAMPLES;
+        let offsets = sample_offsets();
+        let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
+        let mut one_pass: Vec<Option<(u32, Vec3)>> = vec![None; n];
+        for (y0, x0) in (0..h).step_by(TILE as usize).flat_map(|y| (0..w).step_by(TILE as usize).map(move |x| (y, x))) {
+            let tile = TileRect { x0, y0, w: TILE.min(w - x0) as usize, h: TILE.min(h - y0) as usize };
+            let m = tile.w * tile.h * SAMPLES;
+            let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; m], vec![Cover::NONE; m]);
+            for i in 0..tris.len() as u32 {
+                raster_tri(&scene, &tris, i, tile, &offsets, reach, (&mut depth, &mut cover));
+            }
+            for (k, c) in cover.iter().enumerate() {
+                let (px, s) = (k / SAMPLES, k % SAMPLES);
+                let (x, y) = (x0 as usize + px % tile.w, y0 as usize + px / tile.w);
+                one_pass[(y * w as usize + x) * SAMPLES + s] =
+                    (c.tri != u32::MAX).then(|| (tris[c.tri as usize].triangle, tris[c.tri as usize].bary(c.e0, c.e1)));
+            }
+        }
+        // The tiled rasteriser, pixel by pixel through its callback.
+        let tiled = std::sync::Mutex::new(vec![None; n]);
+        let bands: Vec<usize> = (0..h.div_ceil(TILE) as usize).collect();
+        rasterize(&scene, &bounds, &cam, w, h, bands, |band, i, px, _| {
+            let (x, y) = (i % w as usize, *band * TILE as usize + i / w as usize);
+            let at = (y * w as usize + x) * SAMPLES;
+            let mut out = tiled.lock().unwrap();
+            for (s, hit) in px.iter().enumerate() {
+                out[at + s] = hit.map(|h| (h.triangle, h.bary));
+            }
+        });
+        let tiled = tiled.into_inner().unwrap();
+        let covered = one_pass.iter().filter(|s| s.is_some()).count();
+        assert!(covered > n / 2, "most samples are covered ({covered} of {n})");
+        let clipped = one_pass.iter().flatten().filter(|(t, _)| *t >= 20_000).count();
+        assert!(clipped > 1000, "the clipped triangles are drawn ({clipped} samples)");
+        assert!(one_pass == tiled, "the same triangle and barycentrics at every sample");
     }
 
     /// A ceiling triangle that reaches behind the camera is clipped at the near plane, which
@@ -577,7 +416,7 @@ mod tests {
         let bands: Vec<usize> = (0..h.div_ceil(TILE) as usize).collect();
         let offsets = sample_offsets();
         let covered = std::sync::Mutex::new(Vec::new());
-        rasterize(&scene, &scene_bounds(&scene), &cam, w, h, bands, |band, i, px, _| {
+        rasterize(&scene, &scene.bounds(), &cam, w, h, bands, |band, i, px, _| {
             let (x, y) = (i % w as usize, *band * TILE as usize + i / w as usize);
             for (s, hit) in px.iter().enumerate() {
                 if hit.is_some() {
@@ -601,7 +440,8 @@ mod tests {
         let p = [Vec3::new(-3.0, 0.0, 1.0), Vec3::new(3.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -9.0)];
         scene.push_triangle(Triangle { p, n: [Vec3::Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
         let cam = Camera::look_at(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 0.0, -2.0), 50.0);
-        let tris = setup(&scene, &cam, 64, 64, 1e-3);
+        let proj = Projector::new(&cam, (64, 64), 1e-3);
+        let tris: Vec<ScreenTri> = proj.project(0, &scene.triangles[0], true).into_iter().flatten().collect();
         assert_eq!(tris.len(), 1);
         let t = &tris[0];
         let fp = Footprints { tris: &tris };

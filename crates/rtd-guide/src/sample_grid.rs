@@ -39,22 +39,33 @@ const COVER_MARGIN: f32 = 1.0 / 128.0;
 
 /// Whether the interval [lo, hi] (pixels) holds a sample coordinate k + f, for a pixel k in
 /// 0..n and f one of `fractions` (or may: wide intervals answer yes).
-#[inline]
+#[inline(always)]
 fn interval_holds_sample(lo: f32, hi: f32, n: u32, fractions: &[f32; SAMPLES_1D]) -> bool {
     let (lo, hi) = (lo - COVER_MARGIN, hi + COVER_MARGIN);
     if hi - lo >= 1.0 {
         return hi > 0.0 && lo < n as f32;
     }
-    fractions.iter().any(|&f| {
-        // The first pixel whose sample at fraction f lies at or after lo: ⌈max(lo − f, 0)⌉, by
-        // a cast (the float ceil is a library call on the baseline x86-64 target).
-        let x = (lo - f).max(0.0);
-        let mut k = x as u32 as f32;
-        if k < x {
-            k += 1.0;
-        }
-        k < n as f32 && k + f <= hi
-    })
+    // The first sample at or after lo (no earlier than the image's first pixel): in pixel
+    // k = ⌊max(lo, 0)⌋ at the first fraction not below lo − k, else in pixel k + 1 at the first
+    // fraction. The interval holds a sample when that one lies in the image and within hi.
+    // (Selects rather than a loop with branches: a dense mesh asks this of millions of boxes.)
+    let x = lo.max(0.0);
+    if x >= n as f32 {
+        return false;
+    }
+    let k = x as u32 as f32;
+    let r = x - k;
+    let [f0, f1, f2] = fractions.map(|f| f);
+    let (pixel, f) = if r <= f0 {
+        (k, f0)
+    } else if r <= f1 {
+        (k, f1)
+    } else if r <= f2 {
+        (k, f2)
+    } else {
+        (k + 1.0, f0)
+    };
+    pixel < n as f32 && pixel + f <= hi
 }
 
 /// Whether a screen triangle's bounding box holds one of the image's samples. A triangle whose
@@ -62,7 +73,7 @@ fn interval_holds_sample(lo: f32, hi: f32, n: u32, fractions: &[f32; SAMPLES_1D]
 /// than the image's samples are (about 80% of a 2M-triangle instanced mesh at 256²). The samples
 /// form a product grid, so the box holds one exactly when its x and y ranges each hold a sample
 /// coordinate.
-#[inline]
+#[inline(always)]
 pub(crate) fn covers_a_sample(v: &[Vec3; 3], width: u32, height: u32, fractions: &[f32; SAMPLES_1D]) -> bool {
     let lo = v[0].min(v[1]).min(v[2]);
     let hi = v[0].max(v[1]).max(v[2]);

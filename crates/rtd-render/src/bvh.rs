@@ -25,7 +25,7 @@ use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
 use obvhs::ray::{Ray as BvhRay, RayHit};
 use obvhs::triangle::Triangle as BvhTriangle;
 use obvhs::BvhBuildParams;
-use rtd_scene::{AlphaMode, Scene};
+use rtd_scene::{Aabb, AlphaMode, Scene};
 
 mod bundle;
 pub use bundle::MAX_BUNDLE;
@@ -129,6 +129,8 @@ pub struct SceneBvh {
     /// scene has none, as `uvs` is.
     mask: Vec<Option<(f32, u32)>>,
     uvs: Vec<[Vec2; 3]>,
+    /// The scene's bounding box ([`Scene::bounds`]), kept from the build.
+    bounds: Aabb,
 }
 
 impl SceneBvh {
@@ -142,6 +144,7 @@ impl SceneBvh {
                 slot_tri: vec![],
                 mask: vec![],
                 uvs: vec![],
+                bounds: Aabb::EMPTY,
             };
         }
         let bounds = scene.bounds();
@@ -177,7 +180,7 @@ impl SceneBvh {
         } else {
             (vec![], vec![])
         };
-        SceneBvh { bvh, k, verts, slot_tri, mask, uvs }
+        SceneBvh { bvh, k, verts, slot_tri, mask, uvs, bounds }
     }
 
     /// Bytes held on the heap: nodes, slot order, vertices and cut-out data.
@@ -190,6 +193,12 @@ impl SceneBvh {
             + size_of_val(self.slot_tri.as_slice())
             + size_of_val(self.mask.as_slice())
             + size_of_val(self.uvs.as_slice())
+    }
+
+    /// The bounding box of the scene it was built over, exactly [`Scene::bounds`] (kept from the
+    /// build: a dense mesh has hundreds of megabytes of triangles to go over again).
+    pub fn scene_bounds(&self) -> Aabb {
+        self.bounds
     }
 
     /// Number of triangles in the BVH.
@@ -316,6 +325,16 @@ mod tests {
     /// A triangle facing +z with material 0.
     pub(super) fn tri(p: [Vec3; 3]) -> Triangle {
         Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: 0 }
+    }
+
+    #[test]
+    fn the_kept_bounds_are_the_scenes() {
+        let mut s = quad_scene();
+        s.push_triangle(tri([Vec3::new(-3.0, 0.5, 2.0), Vec3::new(0.25, -7.0, 1.0), Vec3::new(1.0, 1.0, -4.5)]));
+        let bounds = SceneBvh::build(&s).scene_bounds();
+        assert_eq!((bounds.min, bounds.max), (Vec3::new(-3.0, -7.0, -4.5), Vec3::new(1.0, 1.0, 2.0)));
+        assert_eq!(bounds, s.bounds());
+        assert!(SceneBvh::build(&Scene::default()).scene_bounds().is_empty());
     }
 
     fn quad_scene() -> Scene {
