@@ -5,7 +5,7 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use rtd_scene::Scene;
 
-use crate::projection::{drawable, signed_area, to_camera, Projector, ScreenTri};
+use crate::projection::{signed_area, to_camera, Projector, ScreenTri};
 
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
@@ -33,6 +33,7 @@ const NOT_CLIPPED: u32 = u32::MAX;
 pub(crate) struct Bins {
     spans: Vec<Span>,
     clipped: Vec<[Option<ScreenTri>; 2]>,
+    /// For each tile (row-major), the indices of the spans it may draw, in the scene's order.
     pub(crate) tiles: Vec<Vec<u32>>,
 }
 
@@ -70,8 +71,7 @@ impl Bins {
             return self.clipped[span.clipped as usize];
         }
         let v = span.v;
-        // `to_screen` gives 1/z both as the depth key and as the weight under perspective.
-        let w = if proj.persp { v.map(|p| p.z) } else { [1.0; 3] };
+        let w = v.map(|p| proj.weight(p.z));
         let b = [Vec3A::X, Vec3A::Y, Vec3A::Z];
         [Some(ScreenTri::new(v, w, b, signed_area(&v), (span.triangle, span.material))), None]
     }
@@ -89,7 +89,7 @@ impl Projector<'_> {
         if c.iter().all(|v| v.z >= self.near) {
             let v = c.map(|c| self.to_screen(c).0);
             // Unclipped, finite, covering a sample and not degenerate: one screen triangle.
-            if !v.iter().all(|p| p.is_finite()) || !self.covers_a_sample(&v) || !drawable(signed_area(&v)) {
+            if !v.iter().all(|p| p.is_finite()) || !self.draws_a_sample(&v, signed_area(&v)) {
                 return None;
             }
             let tiles = self.tile_span(&v, tiles)?;
@@ -117,5 +117,61 @@ impl Projector<'_> {
         let tx1 = (((hi.x + 1.0).max(0.0) as u32) / TILE).min(tiles_x - 1);
         let ty1 = (((hi.y + 1.0).max(0.0) as u32) / TILE).min(tiles_y - 1);
         Some([tx0, tx1, ty0, ty1].map(|t| t as u16))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec2;
+    use rtd_scene::{Camera, Material, Projection, Triangle};
+
+    fn bits(t: &ScreenTri) -> Vec<u32> {
+        let mut out: Vec<u32> = t.v.iter().flat_map(|v| v.to_array()).map(f32::to_bits).collect();
+        out.extend(t.w.map(f32::to_bits));
+        out.extend(t.b.iter().flat_map(|b| b.to_array()).map(f32::to_bits));
+        out.extend(t.grad.map(f32::to_bits));
+        out.extend([t.triangle, t.material]);
+        out
+    }
+
+    /// Every span's screen triangles, rebuilt from its stored vertices (or taken from the list
+    /// of clipped ones), are bit for bit those `Projector::project` builds from the scene
+    /// triangle, under perspective and orthographic projection.
+    #[test]
+    fn spans_rebuild_the_projected_screen_triangles_exactly() {
+        let mut scene = Scene::default();
+        scene.materials.push(Material::default());
+        let mut state = 5u64;
+        let mut rnd = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for k in 0..3000u32 {
+            let c = Vec3::new(rnd() * 2.4 - 1.2, rnd() * 2.4 - 1.2, -2.0 - rnd());
+            let mut corner = || Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.4;
+            let p = [c + corner(), c + corner(), c + corner()];
+            scene.push_triangle(Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: k % 3 });
+        }
+        // Crossing the near plane: a quad's worth, split in two screen triangles.
+        let p = [Vec3::new(-3.0, -1.0, -6.0), Vec3::new(0.5, -1.0, 4.0), Vec3::new(3.0, -1.0, 4.0)];
+        scene.push_triangle(Triangle { p, n: [Vec3::Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
+        let perspective = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
+        let mut orthographic = perspective.clone();
+        orthographic.projection = Projection::Orthographic { ymag: 1.5 };
+        for cam in [perspective, orthographic] {
+            let proj = Projector::new(&cam, (61, 47), 1e-3);
+            let tiles = (61u32.div_ceil(TILE), 47u32.div_ceil(TILE));
+            let bins = Bins::new(&scene, &proj, tiles);
+            assert!(bins.spans.len() > 500, "{} spans", bins.spans.len());
+            for (i, span) in bins.spans.iter().enumerate() {
+                let t = span.triangle as usize;
+                let want = proj.project(t, &scene.triangles[t], true).map(|s| s.as_ref().map(bits));
+                let got = bins.screen_tris(&proj, i as u32).map(|s| s.as_ref().map(bits));
+                assert_eq!(got, want, "span {i} (triangle {t})");
+            }
+            let clipped = bins.spans.iter().filter(|s| s.clipped != NOT_CLIPPED).count();
+            assert_eq!(clipped, matches!(cam.projection, Projection::Perspective { .. }) as usize);
+        }
     }
 }

@@ -246,7 +246,8 @@ pub struct GuidePass {
 }
 
 impl GuidePass {
-    /// Renders the guide layers of `scene` (with its BVH) through `camera`.
+    /// Renders the guide layers of `scene` through `camera`; `bvh` must be
+    /// `SceneBvh::build(scene)` (its rays give the AO, and its bounds the near plane).
     pub fn render(
         scene: &Scene,
         bvh: &SceneBvh,

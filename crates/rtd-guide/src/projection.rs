@@ -9,7 +9,7 @@ use crate::sample_grid::{covers_a_sample, sample_fractions, SAMPLES_1D};
 /// A projected, clipped triangle.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct ScreenTri {
-    /// Screen x, y in pixels and the depth key (1/z for perspective, z for orthographic).
+    /// Screen x, y in pixels and the depth key (1/z for perspective, −z for orthographic).
     pub(crate) v: [Vec3; 3],
     /// 1/z per vertex for perspective-correct interpolation (1 for orthographic).
     pub(crate) w: [f32; 3],
@@ -17,6 +17,7 @@ pub(crate) struct ScreenTri {
     pub(crate) b: [Vec3A; 3],
     /// Screen gradients of the screen-space barycentrics: ∂e0/∂x, ∂e0/∂y, ∂e1/∂x, ∂e1/∂y.
     pub(crate) grad: [f32; 4],
+    /// The scene triangle it is (a piece of).
     pub(crate) triangle: u32,
     /// The scene triangle's material (kept here: reading it from the triangle is a cache miss
     /// per triangle on a mesh of millions).
@@ -78,18 +79,27 @@ pub(crate) fn drawable(area: f64) -> bool {
 /// How world-space triangles reach the screen: the camera, the image size, the projection's
 /// scales and the near clip.
 pub(crate) struct Projector<'a> {
+    /// The camera.
     pub(crate) cam: &'a Camera,
+    /// Image width in pixels.
     pub(crate) width: u32,
+    /// Image height in pixels.
     pub(crate) height: u32,
-    /// Camera-space x and y to normalised device coordinates (before the perspective divide).
+    /// Camera-space x to normalised device coordinates (before the perspective divide).
     pub(crate) sx: f32,
+    /// Camera-space y to normalised device coordinates (before the perspective divide).
     pub(crate) sy: f32,
+    /// Perspective (else orthographic).
     pub(crate) persp: bool,
+    /// The near clip: camera-space z below it is cut away.
     pub(crate) near: f32,
+    /// Where in its pixel each sample lies along x and along y.
     pub(crate) fractions: [f32; SAMPLES_1D],
 }
 
 impl<'a> Projector<'a> {
+    /// The projection of `cam` onto a `width`×`height` image, clipping perspective views at
+    /// `near` (orthographic ones at the camera's own near clip).
     pub(crate) fn new(cam: &'a Camera, (width, height): (u32, u32), near: f32) -> Self {
         let aspect = width as f32 / height as f32;
         let (sx, sy, persp) = match cam.projection {
@@ -108,13 +118,21 @@ impl<'a> Projector<'a> {
     /// Screen x, y in pixels and the depth key of a camera-space point, and its 1/z weight.
     #[inline(always)]
     pub(crate) fn to_screen(&self, c: Vec3) -> (Vec3, f32) {
-        let (nx, ny, w) = if self.persp {
-            (c.x * self.sx / c.z, c.y * self.sy / c.z, 1.0 / c.z)
-        } else {
-            (c.x * self.sx, c.y * self.sy, 1.0)
-        };
+        let (nx, ny) =
+            if self.persp { (c.x * self.sx / c.z, c.y * self.sy / c.z) } else { (c.x * self.sx, c.y * self.sy) };
         let key = if self.persp { 1.0 / c.z } else { -c.z };
-        (Vec3::new((nx + 1.0) * 0.5 * self.width as f32, (1.0 - ny) * 0.5 * self.height as f32, key), w)
+        (Vec3::new((nx + 1.0) * 0.5 * self.width as f32, (1.0 - ny) * 0.5 * self.height as f32, key), self.weight(key))
+    }
+
+    /// The perspective-correct interpolation weight of a vertex with depth key `key`: 1/z,
+    /// which under perspective is the key itself, and 1 under orthographic projection.
+    #[inline(always)]
+    pub(crate) fn weight(&self, key: f32) -> f32 {
+        if self.persp {
+            key
+        } else {
+            1.0
+        }
     }
 
     /// Scene triangle `i`'s screen triangles: none, one, or two (a clipped quad,
@@ -142,20 +160,23 @@ impl<'a> Projector<'a> {
             }
             let tri = [proj[0], proj[k], proj[k + 1]];
             let v = tri.map(|x| x.0);
-            if !v.iter().all(|p| p.is_finite()) || (drop_uncovering && !self.covers_a_sample(&v)) {
+            if !v.iter().all(|p| p.is_finite()) {
                 return None;
             }
             let area = signed_area(&v);
-            if drop_uncovering && !drawable(area) {
+            if drop_uncovering && !self.draws_a_sample(&v, area) {
                 return None;
             }
             Some(ScreenTri::new(v, tri.map(|x| x.1), tri.map(|x| x.2.into()), area, (i as u32, t.material)))
         })
     }
 
+    /// Whether a finite screen triangle with vertices `v` (of [`signed_area`] `area`) can draw
+    /// a sample: its bounding box holds one, and it is not degenerate. The one test both the
+    /// triangle pass and [`Projector::project`] apply.
     #[inline(always)]
-    pub(crate) fn covers_a_sample(&self, v: &[Vec3; 3]) -> bool {
-        covers_a_sample(v, self.width, self.height, &self.fractions)
+    pub(crate) fn draws_a_sample(&self, v: &[Vec3; 3], area: f64) -> bool {
+        covers_a_sample(v, self.width, self.height, &self.fractions) && drawable(area)
     }
 }
 

@@ -23,13 +23,16 @@ pub struct SampleHit {
     pub triangle: u32,
     /// Barycentrics in the original triangle.
     pub bary: Vec3,
-    /// The screen triangle and the sample's screen-space barycentrics (for [`Footprints`]).
+    /// The screen triangle within the tile being drawn and the sample's screen-space
+    /// barycentrics (for [`Footprints`]: a hit is read only with the footprints handed to the
+    /// same call of the shading callback).
     screen: u32,
     e: Vec2,
 }
 
 /// Screen-space derivatives of the samples' barycentrics, for filtering textures over a sample's
-/// footprint; handed to the shading callback of [`rasterize`].
+/// footprint; handed to the shading callback of [`rasterize`] with the hits they belong to (they
+/// hold the screen triangles of one tile only).
 pub struct Footprints<'a> {
     tris: &'a [ScreenTri],
 }
@@ -399,7 +402,7 @@ mod tests {
         scene.push_triangle(Triangle { p, n: [Vec3::NEG_Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
         let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
         let (w, h) = (97u32, 61u32);
-        // Screen positions of a and b in f64, as in `setup`.
+        // Screen positions of a and b in f64, as `Projector::to_screen` computes them.
         let (sy, sx) = (1.0 / (30f64.to_radians()).tan(), 1.0 / ((30f64.to_radians()).tan() * w as f64 / h as f64));
         let screen = |q: Vec3| {
             let c = to_camera(&cam, q);

@@ -25,7 +25,8 @@ pub fn sample_offsets() -> [Vec2; SAMPLES] {
 }
 
 /// Where in its pixel each sample lies along x, and along y (the offsets are a product grid):
-/// 0.5 + the offsets of the first row.
+/// 0.5 + the offsets of the first row, ascending and strictly inside (0, 1) (the sample test
+/// relies on both; `offsets_follow_the_tent` checks them).
 pub(crate) fn sample_fractions() -> [f32; SAMPLES_1D] {
     let offsets = sample_offsets();
     std::array::from_fn(|i| 0.5 + offsets[i].x)
@@ -55,7 +56,7 @@ fn interval_holds_sample(lo: f32, hi: f32, n: u32, fractions: &[f32; SAMPLES_1D]
     }
     let k = x as u32 as f32;
     let r = x - k;
-    let [f0, f1, f2] = fractions.map(|f| f);
+    let [f0, f1, f2] = *fractions;
     let (pixel, f) = if r <= f0 {
         (k, f0)
     } else if r <= f1 {
@@ -89,6 +90,8 @@ mod tests {
         let o = sample_offsets();
         assert_eq!(o[SAMPLES / 2], Vec2::ZERO, "the centre sample is the pixel centre");
         assert!(o.iter().all(|v| v.x.abs() < 1.0 && v.y.abs() < 1.0));
+        let f = sample_fractions();
+        assert!(f.windows(2).all(|w| w[0] < w[1]) && f[0] > 0.0 && f[SAMPLES_1D - 1] < 1.0, "{f:?}");
         let mean: Vec2 = o.iter().copied().sum::<Vec2>() / SAMPLES as f32;
         assert!(mean.length() < 1e-6);
     }
