@@ -69,14 +69,10 @@ where
     F: Fn(&mut B, usize, &[Option<SampleHit>], &Footprints) + Sync,
 {
     assert_eq!(bands.len(), height.div_ceil(TILE) as usize, "one output per band of TILE rows");
-    let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
-    // The near plane sits far enough in front of the eye to keep 1/z well conditioned.
-    let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
-    let near = (far * 1e-6).max(f32::MIN_POSITIVE).max(cam.znear);
+    let near = near_plane(bounds, cam);
     let proj = Projector::new(cam, (width, height), near);
     let offsets = sample_offsets();
-    // How far a sample can lie from its pixel's centre, along x or y.
-    let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
+    let reach = sample_reach(&offsets);
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     let bins = Bins::new(scene, &proj, (tiles_x, tiles_y));
@@ -122,6 +118,19 @@ where
             }
         }
     });
+}
+
+/// The near clip of a view of a scene bounded by `bounds`: far enough in front of the eye to keep
+/// 1/z well conditioned (a millionth of the farthest distance), or the camera's own near clip.
+fn near_plane(bounds: &Aabb, cam: &Camera) -> f32 {
+    let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
+    let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
+    (far * 1e-6).max(f32::MIN_POSITIVE).max(cam.znear)
+}
+
+/// How far a sample can lie from its pixel's centre, along x or y.
+fn sample_reach(offsets: &[Vec2; SAMPLES]) -> f32 {
+    offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max)
 }
 
 /// What a sample sees while its tile is drawn: the screen triangle and its edge functions e0, e1.
@@ -296,7 +305,7 @@ mod tests {
             let n = (w * h) as usize * SAMPLES;
             let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; n], vec![Cover::NONE; n]);
             let offsets = sample_offsets();
-            let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
+            let reach = sample_reach(&offsets);
             let tile = TileRect { x0: 0, y0: 0, w: w as usize, h: h as usize };
             for i in 0..tris.len() as u32 {
                 raster_tri(&scene, &tris, i, tile, &offsets, reach, (&mut depth, &mut cover));
@@ -343,8 +352,7 @@ mod tests {
         let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
         let (w, h) = (97u32, 61u32);
         let bounds = scene.bounds();
-        let size = bounds.diagonal().length();
-        let near = (((bounds.center() - cam.position).length() + size) * 1e-6).max(cam.znear);
+        let near = near_plane(&bounds, &cam);
         // Every projected triangle drawn into every tile (the edge functions are set up per
         // tile, so the reference draws the same tiles), no binning.
         let proj = Projector::new(&cam, (w, h), near);
@@ -354,7 +362,7 @@ mod tests {
         assert!(tris.iter().filter(|t| t.triangle >= 20_000).count() == 3, "the clipped pair gives 3 triangles");
         let n = (w * h) as usize * SAMPLES;
         let offsets = sample_offsets();
-        let reach = offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
+        let reach = sample_reach(&offsets);
         let mut one_pass: Vec<Option<(u32, Vec3)>> = vec![None; n];
         for (y0, x0) in (0..h).step_by(TILE as usize).flat_map(|y| (0..w).step_by(TILE as usize).map(move |x| (y, x))) {
             let tile = TileRect { x0, y0, w: TILE.min(w - x0) as usize, h: TILE.min(h - y0) as usize };
