@@ -92,11 +92,11 @@ impl Projector<'_> {
             if !v.iter().all(|p| p.is_finite()) || !self.draws_a_sample(&v, signed_area(&v)) {
                 return None;
             }
-            let tiles = self.tile_span(&v, tiles)?;
+            let tiles = self.tile_range(&v, tiles)?;
             return Some(Span { v, triangle, material, tiles, clipped: NOT_CLIPPED });
         }
-        let spans = self.project(i, t, true).map(|s| s.and_then(|s| self.tile_span(&s.v, tiles)));
-        let tiles = match spans {
+        let pieces = self.project(i, t, true).map(|s| s.and_then(|s| self.tile_range(&s.v, tiles)));
+        let tiles = match pieces {
             [Some(a), Some(b)] => [a[0].min(b[0]), a[1].max(b[1]), a[2].min(b[2]), a[3].max(b[3])],
             [a, b] => a.or(b)?,
         };
@@ -105,7 +105,7 @@ impl Projector<'_> {
 
     /// The tiles a screen triangle's bounding box, grown by the 1-px filter radius, touches.
     #[inline(always)]
-    fn tile_span(&self, v: &[Vec3; 3], (tiles_x, tiles_y): (u32, u32)) -> Option<[u16; 4]> {
+    fn tile_range(&self, v: &[Vec3; 3], (tiles_x, tiles_y): (u32, u32)) -> Option<[u16; 4]> {
         let lo = v[0].min(v[1]).min(v[2]);
         let hi = v[0].max(v[1]).max(v[2]);
         let (w, h) = (self.width as f32, self.height as f32);
@@ -123,8 +123,9 @@ impl Projector<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_soup::soup;
     use glam::Vec2;
-    use rtd_scene::{Camera, Material, Projection, Triangle};
+    use rtd_scene::{Camera, Projection, Triangle};
 
     fn bits(t: &ScreenTri) -> Vec<u32> {
         let mut out: Vec<u32> = t.v.iter().flat_map(|v| v.to_array()).map(f32::to_bits).collect();
@@ -140,19 +141,8 @@ mod tests {
     /// triangle, under perspective and orthographic projection.
     #[test]
     fn spans_rebuild_the_projected_screen_triangles_exactly() {
-        let mut scene = Scene::default();
-        scene.materials.push(Material::default());
-        let mut state = 5u64;
-        let mut rnd = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
-        for k in 0..3000u32 {
-            let c = Vec3::new(rnd() * 2.4 - 1.2, rnd() * 2.4 - 1.2, -2.0 - rnd());
-            let mut corner = || Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.4;
-            let p = [c + corner(), c + corner(), c + corner()];
-            scene.push_triangle(Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: k % 3 });
-        }
+        let mut scene = soup(3000, 5, |_| 0.4, |_, _| {});
+        scene.triangles.iter_mut().enumerate().for_each(|(k, t)| t.material = k as u32 % 3);
         // Crossing the near plane: a quad's worth, split in two screen triangles.
         let p = [Vec3::new(-3.0, -1.0, -6.0), Vec3::new(0.5, -1.0, 4.0), Vec3::new(3.0, -1.0, 4.0)];
         scene.push_triangle(Triangle { p, n: [Vec3::Y; 3], uv: [Vec2::ZERO; 3], material: 0 });

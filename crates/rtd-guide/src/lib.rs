@@ -14,6 +14,8 @@ mod bins;
 mod projection;
 pub mod raster;
 mod sample_grid;
+#[cfg(test)]
+mod test_soup;
 
 use std::time::Instant;
 

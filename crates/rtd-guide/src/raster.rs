@@ -268,11 +268,17 @@ fn raster_tri(
 mod tests {
     use super::*;
     use crate::projection::to_camera;
+    use crate::test_soup::{project_all, soup};
 
-    /// A small deterministic generator for the tests' random inputs.
-    fn lcg(state: &mut u64) -> f32 {
-        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (*state >> 40) as f32 / (1u64 << 24) as f32
+    /// Draws `tris` (all of them, in order) into one tile: its depth keys and coverage.
+    fn draw_tile(scene: &Scene, tris: &[ScreenTri], tile: TileRect) -> (Vec<f32>, Vec<Cover>) {
+        let n = tile.w * tile.h * SAMPLES;
+        let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; n], vec![Cover::NONE; n]);
+        let offsets = sample_offsets();
+        for i in 0..tris.len() as u32 {
+            raster_tri(scene, tris, i, tile, &offsets, sample_reach(&offsets), (&mut depth, &mut cover));
+        }
+        (depth, cover)
     }
 
     /// Drops of triangles that cover no sample change no sample: a dense soup of tiny triangles
@@ -280,36 +286,18 @@ mod tests {
     /// the same triangle and depth at every sample.
     #[test]
     fn dropping_triangles_that_cover_no_sample_changes_no_sample() {
-        use rtd_scene::{Material, Triangle};
-        let mut scene = Scene::default();
-        scene.materials.push(Material::default());
-        let mut state = 7u64;
-        for i in 0..40_000 {
-            // Centres over the view at z in −3..−2, sides of 0.002–0.12 (about 0.03–1.5 px).
-            let c = Vec3::new(lcg(&mut state) * 2.4 - 1.2, lcg(&mut state) * 2.4 - 1.2, -2.0 - lcg(&mut state));
-            let size = 0.002 + 0.118 * lcg(&mut state).powi(2);
-            let mut corner = || Vec3::new(lcg(&mut state) - 0.5, lcg(&mut state) - 0.5, lcg(&mut state) - 0.5) * size;
-            let mut p = [c + corner(), c + corner(), c + corner()];
-            if i % 50 == 0 {
-                p[2] = p[1]; // degenerate
+        // Sides of 0.002–0.12 (about 0.03–1.5 px); every 50th degenerate.
+        let degenerate = |i: usize, p: &mut [Vec3; 3]| {
+            if i.is_multiple_of(50) {
+                p[2] = p[1];
             }
-            scene.push_triangle(Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: 0 });
-        }
+        };
+        let scene = soup(40_000, 7, |u| 0.002 + 0.118 * u.powi(2), degenerate);
         let cam = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
         let (w, h) = (40u32, 36u32);
         let draw = |drop: bool| {
-            let proj = Projector::new(&cam, (w, h), 1e-3);
-            let tris: Vec<ScreenTri> = (scene.triangles.iter().enumerate())
-                .flat_map(|(i, t)| proj.project(i, t, drop).into_iter().flatten())
-                .collect();
-            let n = (w * h) as usize * SAMPLES;
-            let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; n], vec![Cover::NONE; n]);
-            let offsets = sample_offsets();
-            let reach = sample_reach(&offsets);
-            let tile = TileRect { x0: 0, y0: 0, w: w as usize, h: h as usize };
-            for i in 0..tris.len() as u32 {
-                raster_tri(&scene, &tris, i, tile, &offsets, reach, (&mut depth, &mut cover));
-            }
+            let tris = project_all(&Projector::new(&cam, (w, h), 1e-3), &scene, drop);
+            let (depth, cover) = draw_tile(&scene, &tris, TileRect { x0: 0, y0: 0, w: w as usize, h: h as usize });
             let seen: Vec<(u32, u32)> = cover
                 .iter()
                 .zip(&depth)
@@ -331,17 +319,8 @@ mod tests {
     /// drawing every projected triangle into every tile gives.
     #[test]
     fn tiled_drawing_equals_one_pass_over_every_triangle() {
-        use rtd_scene::{Material, Triangle};
-        let mut scene = Scene::default();
-        scene.materials.push(Material::default());
-        let mut state = 11u64;
-        for _ in 0..20_000 {
-            let c = Vec3::new(lcg(&mut state) * 2.4 - 1.2, lcg(&mut state) * 2.4 - 1.2, -2.0 - lcg(&mut state));
-            let size = 0.002 + 0.3 * lcg(&mut state).powi(3);
-            let mut corner = || Vec3::new(lcg(&mut state) - 0.5, lcg(&mut state) - 0.5, lcg(&mut state) - 0.5) * size;
-            let p = [c + corner(), c + corner(), c + corner()];
-            scene.push_triangle(Triangle { p, n: [Vec3::Z; 3], uv: [Vec2::ZERO; 3], material: 0 });
-        }
+        use rtd_scene::Triangle;
+        let mut scene = soup(20_000, 11, |u| 0.002 + 0.3 * u.powi(3), |_, _| {});
         // Two triangles clipped at the near plane (one gives a quad: two screen triangles).
         for p in [
             [Vec3::new(-2.0, 1.0, -3.0), Vec3::new(3.0, 1.0, -4.5), Vec3::new(0.5, 1.0, 5.0)],
@@ -355,22 +334,13 @@ mod tests {
         let near = near_plane(&bounds, &cam);
         // Every projected triangle drawn into every tile (the edge functions are set up per
         // tile, so the reference draws the same tiles), no binning.
-        let proj = Projector::new(&cam, (w, h), near);
-        let tris: Vec<ScreenTri> = (scene.triangles.iter().enumerate())
-            .flat_map(|(i, t)| proj.project(i, t, true).into_iter().flatten())
-            .collect();
+        let tris = project_all(&Projector::new(&cam, (w, h), near), &scene, true);
         assert!(tris.iter().filter(|t| t.triangle >= 20_000).count() == 3, "the clipped pair gives 3 triangles");
         let n = (w * h) as usize * SAMPLES;
-        let offsets = sample_offsets();
-        let reach = sample_reach(&offsets);
         let mut one_pass: Vec<Option<(u32, Vec3)>> = vec![None; n];
         for (y0, x0) in (0..h).step_by(TILE as usize).flat_map(|y| (0..w).step_by(TILE as usize).map(move |x| (y, x))) {
             let tile = TileRect { x0, y0, w: TILE.min(w - x0) as usize, h: TILE.min(h - y0) as usize };
-            let m = tile.w * tile.h * SAMPLES;
-            let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; m], vec![Cover::NONE; m]);
-            for i in 0..tris.len() as u32 {
-                raster_tri(&scene, &tris, i, tile, &offsets, reach, (&mut depth, &mut cover));
-            }
+            let (_, cover) = draw_tile(&scene, &tris, tile);
             for (k, c) in cover.iter().enumerate() {
                 let (px, s) = (k / SAMPLES, k % SAMPLES);
                 let (x, y) = (x0 as usize + px % tile.w, y0 as usize + px / tile.w);
@@ -451,8 +421,7 @@ mod tests {
         let p = [Vec3::new(-3.0, 0.0, 1.0), Vec3::new(3.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -9.0)];
         scene.push_triangle(Triangle { p, n: [Vec3::Y; 3], uv: [Vec2::ZERO; 3], material: 0 });
         let cam = Camera::look_at(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 0.0, -2.0), 50.0);
-        let proj = Projector::new(&cam, (64, 64), 1e-3);
-        let tris: Vec<ScreenTri> = proj.project(0, &scene.triangles[0], true).into_iter().flatten().collect();
+        let tris = project_all(&Projector::new(&cam, (64, 64), 1e-3), &scene, true);
         assert_eq!(tris.len(), 1);
         let t = &tris[0];
         let fp = Footprints { tris: &tris };
