@@ -3,9 +3,11 @@
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
-use rtd_scene::Scene;
+use rtd_scene::{Scene, Triangle};
 
+use crate::lanes::LANES;
 use crate::projection::{signed_area, to_camera, Projector, ScreenTri};
+use crate::sample_grid::pixels_reached;
 
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
@@ -31,9 +33,11 @@ const NOT_CLIPPED: u32 = u32::MAX;
 /// floor crossing the near plane may reach every tile), and for each tile the indices of the
 /// spans it may draw.
 pub(crate) struct Bins {
-    spans: Vec<Span>,
+    /// The spans of each [`CHUNK`] of scene triangles (a span's id is its chunk's index shifted
+    /// by [`CHUNK_BITS`], plus its place in the chunk's list: no copy into one list).
+    spans: Vec<Vec<Span>>,
     clipped: Vec<[Option<ScreenTri>; 2]>,
-    /// For each tile (row-major), the indices of the spans it may draw, in the scene's order.
+    /// For each tile (row-major), the ids of the spans it may draw, in the scene's order.
     pub(crate) tiles: Vec<Vec<u32>>,
 }
 
@@ -42,31 +46,37 @@ impl Bins {
     /// bytes drawing needs besides their index and material, so drawing never reads the scene's
     /// triangles again.
     pub(crate) fn new(scene: &Scene, proj: &Projector, (tiles_x, tiles_y): (u32, u32)) -> Self {
-        let mut spans: Vec<Span> =
-            scene.triangles.par_iter().enumerate().filter_map(|(i, t)| proj.span(i, t, (tiles_x, tiles_y))).collect();
+        // Chunks of triangles in parallel, each tested LANES at a time; their spans in order.
+        let mut spans: Vec<Vec<Span>> = (scene.triangles.par_chunks(CHUNK).enumerate())
+            .map(|(c, tris)| proj.spans_of(c * CHUNK, tris, (tiles_x, tiles_y)))
+            .collect();
         let mut clipped = Vec::new();
-        for span in spans.iter_mut().filter(|s| s.clipped != NOT_CLIPPED) {
+        for span in spans.iter_mut().flatten().filter(|s| s.clipped != NOT_CLIPPED) {
             span.clipped = clipped.len() as u32;
             let i = span.triangle as usize;
             clipped.push(proj.project(i, &scene.triangles[i], true));
         }
         let mut tiles: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
-        for (i, span) in spans.iter().enumerate() {
-            let [tx0, tx1, ty0, ty1] = span.tiles.map(u32::from);
-            for ty in ty0..=ty1 {
-                for tx in tx0..=tx1 {
-                    tiles[(ty * tiles_x + tx) as usize].push(i as u32);
+        for (c, chunk) in spans.iter().enumerate() {
+            for (k, span) in chunk.iter().enumerate() {
+                let id = (c << CHUNK_BITS | k) as u32;
+                let [tx0, tx1, ty0, ty1] = span.tiles.map(u32::from);
+                for ty in ty0..=ty1 {
+                    for tx in tx0..=tx1 {
+                        tiles[(ty * tiles_x + tx) as usize].push(id);
+                    }
                 }
             }
         }
         Bins { spans, clipped, tiles }
     }
 
-    /// The screen triangles of span `i`: those [`Projector::project`] gives its triangle, built
-    /// from the span's screen vertices as `project` builds them, so they are the same.
+    /// The screen triangles of the span with id `id`: those [`Projector::project`] gives its
+    /// triangle, built from the span's screen vertices as `project` builds them, so they are the
+    /// same.
     #[inline(always)]
-    pub(crate) fn screen_tris(&self, proj: &Projector, i: u32) -> [Option<ScreenTri>; 2] {
-        let span = &self.spans[i as usize];
+    pub(crate) fn screen_tris(&self, proj: &Projector, id: u32) -> [Option<ScreenTri>; 2] {
+        let span = &self.spans[id as usize >> CHUNK_BITS][id as usize & (CHUNK - 1)];
         if span.clipped != NOT_CLIPPED {
             return self.clipped[span.clipped as usize];
         }
@@ -77,7 +87,63 @@ impl Bins {
     }
 }
 
+/// log2 of [`CHUNK`].
+const CHUNK_BITS: usize = 12;
+/// Triangles a parallel job of the triangle pass tests.
+const CHUNK: usize = 1 << CHUNK_BITS;
+
 impl Projector<'_> {
+    /// The spans of scene triangles `first..first + tris.len()` (`tris`), in order: what
+    /// [`Projector::span`] gives each, tested [`LANES`] at a time (with AVX-512 where the CPU
+    /// has it).
+    fn spans_of(&self, first: usize, tris: &[Triangle], tiles: (u32, u32)) -> Vec<Span> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx512bw")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+        {
+            // SAFETY: the CPU has the features the function is compiled for.
+            return unsafe { self.spans_of_avx512(first, tris, tiles) };
+        }
+        self.spans_in_lanes(first, tris, tiles)
+    }
+
+    /// [`Projector::spans_in_lanes`] compiled for AVX-512 (sixteen f32 lanes a register).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]
+    fn spans_of_avx512(&self, first: usize, tris: &[Triangle], tiles: (u32, u32)) -> Vec<Span> {
+        self.spans_in_lanes(first, tris, tiles)
+    }
+
+    /// The body of [`Projector::spans_of`]: the lane-wise test, then a span for each triangle
+    /// it keeps and the scalar path for each it says to clip.
+    #[inline(always)]
+    fn spans_in_lanes(&self, first: usize, tris: &[Triangle], tiles: (u32, u32)) -> Vec<Span> {
+        let mut out = Vec::new();
+        for (b, batch) in tris.chunks(LANES).enumerate() {
+            let test = self.test_lanes(batch);
+            for (l, t) in batch.iter().enumerate() {
+                let i = first + b * LANES + l;
+                if test.keep[l] {
+                    let v = test.vertices(l);
+                    if let Some(range) = self.tile_range(&v, tiles) {
+                        out.push(Span {
+                            v,
+                            triangle: i as u32,
+                            material: t.material,
+                            tiles: range,
+                            clipped: NOT_CLIPPED,
+                        });
+                    }
+                } else if test.clip[l] {
+                    out.extend(self.span(i, t, tiles));
+                }
+            }
+        }
+        out
+    }
+
     /// Scene triangle `i` as the tiles see it ([`Span`]; a clipped one is marked, not yet
     /// placed), or None when it draws nothing. Most triangles of a dense mesh are whole in front
     /// of the eye and cover no sample: their screen box settles it, without building their
@@ -103,19 +169,20 @@ impl Projector<'_> {
         Some(Span { v: [Vec3::ZERO; 3], triangle, material, tiles, clipped: 0 })
     }
 
-    /// The tiles a screen triangle's bounding box, grown by the 1-px filter radius, touches.
+    /// The tiles holding the pixels whose samples a screen triangle's bounding box can touch
+    /// ([`pixels_reached`], which the rasteriser visits), or None when no such pixel is in the
+    /// image.
     #[inline(always)]
     fn tile_range(&self, v: &[Vec3; 3], (tiles_x, tiles_y): (u32, u32)) -> Option<[u16; 4]> {
-        let lo = v[0].min(v[1]).min(v[2]);
-        let hi = v[0].max(v[1]).max(v[2]);
+        let [lx, hx, ly, hy] = pixels_reached(v, self.reach);
         let (w, h) = (self.width as f32, self.height as f32);
-        if hi.x < -1.0 || hi.y < -1.0 || lo.x > w + 1.0 || lo.y > h + 1.0 {
+        if !(lx <= hx && ly <= hy && hx >= 0.0 && hy >= 0.0 && lx < w && ly < h) {
             return None;
         }
-        let tx0 = ((lo.x - 1.0).max(0.0) as u32 / TILE).min(tiles_x - 1);
-        let ty0 = ((lo.y - 1.0).max(0.0) as u32 / TILE).min(tiles_y - 1);
-        let tx1 = (((hi.x + 1.0).max(0.0) as u32) / TILE).min(tiles_x - 1);
-        let ty1 = (((hi.y + 1.0).max(0.0) as u32) / TILE).min(tiles_y - 1);
+        let tx0 = (lx.max(0.0) as u32 / TILE).min(tiles_x - 1);
+        let ty0 = (ly.max(0.0) as u32 / TILE).min(tiles_y - 1);
+        let tx1 = (hx.min(w - 1.0) as u32 / TILE).min(tiles_x - 1);
+        let ty1 = (hy.min(h - 1.0) as u32 / TILE).min(tiles_y - 1);
         Some([tx0, tx1, ty0, ty1].map(|t| t as u16))
     }
 }
@@ -131,7 +198,8 @@ mod tests {
         let mut out: Vec<u32> = t.v.iter().flat_map(|v| v.to_array()).map(f32::to_bits).collect();
         out.extend(t.w.map(f32::to_bits));
         out.extend(t.b.iter().flat_map(|b| b.to_array()).map(f32::to_bits));
-        out.extend(t.grad.map(f32::to_bits));
+        out.extend(t.grad().map(f32::to_bits));
+        out.extend([t.area.to_bits() as u32, (t.area.to_bits() >> 32) as u32]);
         out.extend([t.triangle, t.material]);
         out
     }
@@ -153,15 +221,74 @@ mod tests {
             let proj = Projector::new(&cam, (61, 47), 1e-3);
             let tiles = (61u32.div_ceil(TILE), 47u32.div_ceil(TILE));
             let bins = Bins::new(&scene, &proj, tiles);
-            assert!(bins.spans.len() > 500, "{} spans", bins.spans.len());
-            for (i, span) in bins.spans.iter().enumerate() {
+            let ids =
+                bins.spans.iter().enumerate().flat_map(|(c, chunk)| (0..chunk.len()).map(move |k| c << CHUNK_BITS | k));
+            let spans: Vec<&Span> = bins.spans.iter().flatten().collect();
+            assert!(spans.len() > 500, "{} spans", spans.len());
+            for (id, span) in ids.zip(&spans) {
                 let t = span.triangle as usize;
                 let want = proj.project(t, &scene.triangles[t], true).map(|s| s.as_ref().map(bits));
-                let got = bins.screen_tris(&proj, i as u32).map(|s| s.as_ref().map(bits));
-                assert_eq!(got, want, "span {i} (triangle {t})");
+                let got = bins.screen_tris(&proj, id as u32).map(|s| s.as_ref().map(bits));
+                assert_eq!(got, want, "span {id} (triangle {t})");
             }
-            let clipped = bins.spans.iter().filter(|s| s.clipped != NOT_CLIPPED).count();
+            let clipped = spans.iter().filter(|s| s.clipped != NOT_CLIPPED).count();
             assert_eq!(clipped, matches!(cam.projection, Projection::Perspective { .. }) as usize);
+        }
+    }
+
+    /// A span as bits, to compare two passes exactly.
+    fn span_bits(s: &Span) -> Vec<u32> {
+        let mut out: Vec<u32> = s.v.iter().flat_map(|v| v.to_array()).map(f32::to_bits).collect();
+        out.extend([s.triangle, s.material, s.clipped]);
+        out.extend(s.tiles.map(u32::from));
+        out
+    }
+
+    /// The pass in lanes (as dispatched, and compiled for the baseline CPU) keeps exactly the
+    /// triangles the one-triangle path keeps, with the same screen vertices to the bit, on a
+    /// soup of tiny and large triangles with non-finite, degenerate, behind-the-eye and
+    /// near-clipped ones among them, under perspective and orthographic projection, at a
+    /// count that leaves a partial batch.
+    #[test]
+    fn the_pass_in_lanes_keeps_what_the_one_triangle_path_keeps() {
+        let scene = soup(
+            5003,
+            11,
+            |u| 0.4 * u * u * u,
+            |k, p| match k % 7 {
+                1 if k % 3 == 0 => p[0].x = f32::NAN,
+                2 if k % 3 == 0 => p[2] = p[1],
+                3 if k % 3 == 0 => p.iter_mut().for_each(|q| q.z += 5.0),
+                4 if k % 3 == 0 => p[0].z = 1.0,
+                5 if k % 3 == 0 => p[1].y = f32::INFINITY,
+                6 if k % 5 == 0 => p[2] *= 1e30,
+                _ => {}
+            },
+        );
+        let perspective = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, 60.0);
+        let mut orthographic = perspective.clone();
+        orthographic.projection = Projection::Orthographic { ymag: 1.5 };
+        for cam in [perspective, orthographic] {
+            for (w, h) in [(61, 47), (256, 256)] {
+                let proj = Projector::new(&cam, (w, h), 1e-3);
+                let tiles = (w.div_ceil(TILE), h.div_ceil(TILE));
+                let want: Vec<Vec<u32>> = (scene.triangles.iter().enumerate())
+                    .filter_map(|(i, t)| proj.span(i, t, tiles))
+                    .map(|s| span_bits(&s))
+                    .collect();
+                let clipped = want.iter().filter(|s| s[11] != NOT_CLIPPED).count();
+                let perspective = matches!(cam.projection, Projection::Perspective { .. });
+                assert!(want.len() > 300 && want.len() < 4000, "{} of 5003 kept", want.len());
+                assert!(!perspective || clipped > 50, "{clipped} clipped");
+                let mut lanes = Vec::new();
+                let mut dispatched = Vec::new();
+                for (c, tris) in scene.triangles.chunks(1000).enumerate() {
+                    lanes.extend(proj.spans_in_lanes(c * 1000, tris, tiles).iter().map(span_bits));
+                    dispatched.extend(proj.spans_of(c * 1000, tris, tiles).iter().map(span_bits));
+                }
+                assert_eq!(lanes, want, "baseline lanes, {w}x{h}");
+                assert_eq!(dispatched, want, "dispatched lanes, {w}x{h}");
+            }
         }
     }
 }

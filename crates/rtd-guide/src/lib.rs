@@ -11,6 +11,7 @@
 
 mod ao;
 mod bins;
+mod lanes;
 mod projection;
 pub mod raster;
 mod sample_grid;

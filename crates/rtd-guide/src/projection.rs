@@ -4,7 +4,7 @@
 use glam::{Vec3, Vec3A};
 use rtd_scene::{Camera, Projection};
 
-use crate::sample_grid::{covers_a_sample, sample_fractions, SAMPLES_1D};
+use crate::sample_grid::{covers_a_sample, sample_fractions, sample_reach, SAMPLES_1D};
 
 /// A projected, clipped triangle.
 #[derive(Debug, Clone, Copy)]
@@ -15,8 +15,8 @@ pub(crate) struct ScreenTri {
     pub(crate) w: [f32; 3],
     /// Barycentrics of each vertex in the original triangle.
     pub(crate) b: [Vec3A; 3],
-    /// Screen gradients of the screen-space barycentrics: ∂e0/∂x, ∂e0/∂y, ∂e1/∂x, ∂e1/∂y.
-    pub(crate) grad: [f32; 4],
+    /// Twice the signed screen area ([`signed_area`] of `v`).
+    pub(crate) area: f64,
     /// The scene triangle it is (a piece of).
     pub(crate) triangle: u32,
     /// The scene triangle's material (kept here: reading it from the triangle is a cache miss
@@ -63,7 +63,7 @@ pub(crate) fn clip_near(tri: &[(Vec3, Vec3); 3], near: f32) -> Clipped {
 
 /// Twice the signed screen area of a triangle, in f64 (clipped vertices can project far off
 /// screen).
-#[inline]
+#[inline(always)]
 pub(crate) fn signed_area(v: &[Vec3; 3]) -> f64 {
     let [a, b, c] = v.map(|p| (p.x as f64, p.y as f64));
     (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
@@ -71,9 +71,9 @@ pub(crate) fn signed_area(v: &[Vec3; 3]) -> f64 {
 
 /// Whether the rasteriser draws a triangle of this [`signed_area`]: not a degenerate or
 /// non-finite one. The one test both dropping a triangle early and drawing it use.
-#[inline]
+#[inline(always)]
 pub(crate) fn drawable(area: f64) -> bool {
-    area != 0.0 && area.is_finite()
+    (area != 0.0) & area.is_finite()
 }
 
 /// How world-space triangles reach the screen: the camera, the image size, the projection's
@@ -95,6 +95,8 @@ pub(crate) struct Projector<'a> {
     pub(crate) near: f32,
     /// Where in its pixel each sample lies along x and along y.
     pub(crate) fractions: [f32; SAMPLES_1D],
+    /// How far a sample lies from its pixel's centre at most ([`sample_reach`]).
+    pub(crate) reach: f32,
 }
 
 impl<'a> Projector<'a> {
@@ -112,7 +114,7 @@ impl<'a> Projector<'a> {
         // Orthographic rays start on the camera plane, so both projections clip (at z = 0 there,
         // or the camera's own near clip).
         let near = if persp { near } else { cam.znear };
-        Projector { cam, width, height, sx, sy, persp, near, fractions: sample_fractions() }
+        Projector { cam, width, height, sx, sy, persp, near, fractions: sample_fractions(), reach: sample_reach() }
     }
 
     /// Screen x, y in pixels and the depth key of a camera-space point, and its 1/z weight.
@@ -176,7 +178,7 @@ impl<'a> Projector<'a> {
     /// triangle pass and [`Projector::project`] apply.
     #[inline(always)]
     pub(crate) fn draws_a_sample(&self, v: &[Vec3; 3], area: f64) -> bool {
-        covers_a_sample(v, self.width, self.height, &self.fractions) && drawable(area)
+        covers_a_sample(v, self.width, self.height, &self.fractions) & drawable(area)
     }
 }
 
@@ -185,11 +187,19 @@ impl ScreenTri {
     /// original barycentrics `b`, of scene triangle and material `(triangle, material)`.
     #[inline(always)]
     pub(crate) fn new(v: [Vec3; 3], w: [f32; 3], b: [Vec3A; 3], area: f64, (triangle, material): (u32, u32)) -> Self {
+        ScreenTri { v, w, b, area, triangle, material }
+    }
+
+    /// Screen gradients of the screen-space barycentrics: ∂e0/∂x, ∂e0/∂y, ∂e1/∂x, ∂e1/∂y.
+    /// Computed when asked (only textured samples ask), not when the triangle is built: a dense
+    /// mesh builds hundreds of thousands of screen triangles and four f64 divisions each.
+    #[inline]
+    pub(crate) fn grad(&self) -> [f32; 4] {
         // e0 = area(p, b, c) / area(a, b, c) and e1 = area(p, c, a) / area(a, b, c) are affine in
         // screen (x, y); their gradients (in f64: clipped vertices can be far off).
-        let [a, b_, c] = v.map(|p| (p.x as f64, p.y as f64));
-        let grad = [(b_.1 - c.1) / area, (c.0 - b_.0) / area, (c.1 - a.1) / area, (a.0 - c.0) / area].map(|g| g as f32);
-        ScreenTri { v, w, b, grad, triangle, material }
+        let [a, b, c] = self.v.map(|p| (p.x as f64, p.y as f64));
+        let area = self.area;
+        [(b.1 - c.1) / area, (c.0 - b.0) / area, (c.1 - a.1) / area, (a.0 - c.0) / area].map(|g| g as f32)
     }
 
     /// Perspective-correct barycentrics in the original triangle at screen-space barycentrics

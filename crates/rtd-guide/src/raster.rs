@@ -13,7 +13,8 @@ use rtd_scene::{Aabb, AlphaMode, Camera, Scene};
 
 use crate::bins::Bins;
 pub use crate::bins::TILE;
-use crate::projection::{drawable, signed_area, Projector, ScreenTri};
+use crate::projection::{drawable, Projector, ScreenTri};
+use crate::sample_grid::{pixels_reached, sample_reach};
 pub use crate::sample_grid::{sample_offsets, SAMPLES, SAMPLES_1D};
 
 /// What one sample sees.
@@ -53,7 +54,8 @@ impl Footprints<'_> {
             let dd: f32 = (0..3).map(|i| de[i] * t.w[i]).sum();
             (dn - hit.bary * dd) * (step / d)
         };
-        [along(t.grad[0], t.grad[2]), along(t.grad[1], t.grad[3])]
+        let grad = t.grad();
+        [along(grad[0], grad[2]), along(grad[1], grad[3])]
     }
 }
 
@@ -72,7 +74,7 @@ where
     let near = near_plane(bounds, cam);
     let proj = Projector::new(cam, (width, height), near);
     let offsets = sample_offsets();
-    let reach = sample_reach(&offsets);
+    let reach = sample_reach();
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     let bins = Bins::new(scene, &proj, (tiles_x, tiles_y));
@@ -92,13 +94,9 @@ where
             cover[..n].fill(Cover::NONE);
             tris.clear();
             let tile = TileRect { x0, y0, w: tw, h: th };
-            for &i in &bins.tiles[(ty as u32 * tiles_x + tx) as usize] {
-                for t in bins.screen_tris(&proj, i).into_iter().flatten() {
-                    tris.push(t);
-                    let index = tris.len() as u32 - 1;
-                    raster_tri(scene, &tris, index, tile, &offsets, reach, (&mut depth[..n], &mut cover[..n]));
-                }
-            }
+            let list = &bins.tiles[(ty as u32 * tiles_x + tx) as usize];
+            let draw = TileDraw { scene, bins: &bins, proj: &proj, offsets: &offsets, reach, tile };
+            draw.run(list, &mut tris, (&mut depth[..n], &mut cover[..n]));
             let footprints = Footprints { tris: &tris };
             for (k, px) in cover[..n].chunks(SAMPLES).enumerate() {
                 // Barycentrics only for the samples' final triangles.
@@ -120,17 +118,58 @@ where
     });
 }
 
+/// What drawing one tile's triangles needs besides its buffers.
+struct TileDraw<'a> {
+    scene: &'a Scene,
+    bins: &'a Bins,
+    proj: &'a Projector<'a>,
+    offsets: &'a [Vec2; SAMPLES],
+    reach: f32,
+    tile: TileRect,
+}
+
+impl TileDraw<'_> {
+    /// Draws the spans `list` into the tile's depth and coverage, appending their screen
+    /// triangles to `tris` (with AVX-512 where the CPU has it).
+    fn run(&self, list: &[u32], tris: &mut Vec<ScreenTri>, buffers: (&mut [f32], &mut [Cover])) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx512bw")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+        {
+            // SAFETY: the CPU has the features the function is compiled for.
+            return unsafe { self.run_avx512(list, tris, buffers) };
+        }
+        self.run_inline(list, tris, buffers)
+    }
+
+    /// [`TileDraw::run_inline`] compiled for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]
+    fn run_avx512(&self, list: &[u32], tris: &mut Vec<ScreenTri>, buffers: (&mut [f32], &mut [Cover])) {
+        self.run_inline(list, tris, buffers)
+    }
+
+    /// The body of [`TileDraw::run`].
+    #[inline(always)]
+    fn run_inline(&self, list: &[u32], tris: &mut Vec<ScreenTri>, (depth, cover): (&mut [f32], &mut [Cover])) {
+        for &i in list {
+            for t in self.bins.screen_tris(self.proj, i).into_iter().flatten() {
+                tris.push(t);
+                let index = tris.len() as u32 - 1;
+                raster_tri(self.scene, tris, index, self.tile, self.offsets, self.reach, (&mut *depth, &mut *cover));
+            }
+        }
+    }
+}
+
 /// The near clip of a view of a scene bounded by `bounds`: far enough in front of the eye to keep
 /// 1/z well conditioned (a millionth of the farthest distance), or the camera's own near clip.
 fn near_plane(bounds: &Aabb, cam: &Camera) -> f32 {
     let size = if bounds.is_empty() { 1.0 } else { bounds.diagonal().length().max(f32::MIN_POSITIVE) };
     let far = if bounds.is_empty() { 1.0 } else { (bounds.center() - cam.position).length() + size };
     (far * 1e-6).max(f32::MIN_POSITIVE).max(cam.znear)
-}
-
-/// How far a sample can lie from its pixel's centre, along x or y.
-fn sample_reach(offsets: &[Vec2; SAMPLES]) -> f32 {
-    offsets.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max)
 }
 
 /// What a sample sees while its tile is drawn: the screen triangle and its edge functions e0, e1.
@@ -156,6 +195,7 @@ struct TileRect {
 
 /// Rasterises screen triangle `index` into a tile's sample buffers, depth keys and coverage
 /// (greater depth key wins; ties keep the first).
+#[inline(always)]
 fn raster_tri(
     scene: &Scene,
     tris: &[ScreenTri],
@@ -168,11 +208,21 @@ fn raster_tri(
     let TileRect { x0, y0, w: tw, h: th } = tile;
     let t = &tris[index as usize];
     let [a, b, c] = t.v;
+    // The tile's pixels whose samples can touch the triangle's bounding box; often none, for a
+    // small triangle near the tile's edge (the tile's neighbour draws it).
+    let [lx, hx, ly, hy] = pixels_reached(&t.v, reach);
+    let px0 = (lx.max(x0 as f32) as usize).saturating_sub(x0 as usize);
+    let py0 = (ly.max(y0 as f32) as usize).saturating_sub(y0 as usize);
+    let px1 = ((hx + 1.0 - x0 as f32).max(0.0) as usize).min(tw);
+    let py1 = ((hy + 1.0 - y0 as f32).max(0.0) as usize).min(th);
+    if px0 >= px1 || py0 >= py1 {
+        return;
+    }
     // Edge functions as planes e(p) = A·(x − x0) + B·(y − y0) + C over the tile, set up in f64
     // (clipped vertices can project far off screen) and normalised by twice the signed area:
     // e0, e1, e2 are the screen-space barycentrics of vertices a, b, c. Either winding is drawn.
     let (ax, ay, bx, by, cx, cy) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64);
-    let area = signed_area(&t.v);
+    let area = t.area;
     if !drawable(area) {
         return;
     }
@@ -199,15 +249,6 @@ fn raster_tri(
     if max_over(a0, b0, c0) < 0.0 || max_over(a1, b1, c1) < 0.0 || max_over(a2, b2, c2) < 0.0 {
         return;
     }
-    // The pixels whose samples can touch the triangle's bounding box: pixel p's samples lie
-    // within `reach` of its centre p + 0.5, so p spans [lo − 0.5 − reach, hi − 0.5 + reach]
-    // (widened by a margin far above the edge functions' rounding).
-    let lo = a.min(b).min(c) - Vec3::splat(0.5 + reach + 0.05);
-    let hi = a.max(b).max(c) + Vec3::splat(reach + 0.05 - 0.5);
-    let px0 = (lo.x.ceil().max(x0 as f32) as usize).saturating_sub(x0 as usize);
-    let py0 = (lo.y.ceil().max(y0 as f32) as usize).saturating_sub(y0 as usize);
-    let px1 = ((hi.x.floor() + 1.0 - x0 as f32).max(0.0) as usize).min(tw);
-    let py1 = ((hi.y.floor() + 1.0 - y0 as f32).max(0.0) as usize).min(th);
     let material = &scene.materials[t.material as usize];
     let cutoff = match material.alpha_mode {
         AlphaMode::Mask(c) => Some(c),
@@ -276,7 +317,7 @@ mod tests {
         let (mut depth, mut cover) = (vec![f32::NEG_INFINITY; n], vec![Cover::NONE; n]);
         let offsets = sample_offsets();
         for i in 0..tris.len() as u32 {
-            raster_tri(scene, tris, i, tile, &offsets, sample_reach(&offsets), (&mut depth, &mut cover));
+            raster_tri(scene, tris, i, tile, &offsets, sample_reach(), (&mut depth, &mut cover));
         }
         (depth, cover)
     }
@@ -427,8 +468,9 @@ mod tests {
         let fp = Footprints { tris: &tris };
         // Screen-space barycentrics of pixel (x, y) from the screen vertices.
         let e_at = |x: f32, y: f32| {
-            let e0 = t.grad[0] * (x - t.v[2].x) + t.grad[1] * (y - t.v[2].y);
-            let e1 = t.grad[2] * (x - t.v[2].x) + t.grad[3] * (y - t.v[2].y);
+            let grad = t.grad();
+            let e0 = grad[0] * (x - t.v[2].x) + grad[1] * (y - t.v[2].y);
+            let e1 = grad[2] * (x - t.v[2].x) + grad[3] * (y - t.v[2].y);
             Vec2::new(e0, e1)
         };
         for (x, y) in [(32.0, 40.0), (20.5, 50.2), (40.0, 30.0)] {

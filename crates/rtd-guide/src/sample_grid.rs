@@ -24,6 +24,24 @@ pub fn sample_offsets() -> [Vec2; SAMPLES] {
     out
 }
 
+/// How far a sample can lie from its pixel's centre, along x or y.
+pub(crate) fn sample_reach() -> f32 {
+    sample_offsets().iter().map(|o| o.abs().max_element()).fold(0.0, f32::max)
+}
+
+/// The pixels whose samples can touch the bounding box of screen vertices `v`, as the first and
+/// last column, then row (whole numbers in f32; first above last when none can; image
+/// coordinates, not clamped to the image). Pixel p's samples lie within `reach`
+/// ([`sample_reach`]) of its centre p + 0.5, so p spans [lo − 0.5 − reach, hi − 0.5 + reach],
+/// widened by a margin far above the edge functions' rounding. The rasteriser visits these
+/// pixels, and the tiles a triangle is binned to are the tiles they lie in.
+#[inline(always)]
+pub(crate) fn pixels_reached(v: &[Vec3; 3], reach: f32) -> [f32; 4] {
+    let lo = v[0].min(v[1]).min(v[2]) - Vec3::splat(0.5 + reach + 0.05);
+    let hi = v[0].max(v[1]).max(v[2]) + Vec3::splat(reach + 0.05 - 0.5);
+    [lo.x.ceil(), hi.x.floor(), lo.y.ceil(), hi.y.floor()]
+}
+
 /// Where in its pixel each sample lies along x, and along y (the offsets are a product grid):
 /// 0.5 + the offsets of the first row, ascending and strictly inside (0, 1) (the sample test
 /// relies on both; `offsets_follow_the_tent` checks them).
@@ -43,30 +61,34 @@ const COVER_MARGIN: f32 = 1.0 / 128.0;
 #[inline(always)]
 fn interval_holds_sample(lo: f32, hi: f32, n: u32, fractions: &[f32; SAMPLES_1D]) -> bool {
     let (lo, hi) = (lo - COVER_MARGIN, hi + COVER_MARGIN);
-    if hi - lo >= 1.0 {
-        return hi > 0.0 && lo < n as f32;
-    }
-    // The first sample at or after lo (no earlier than the image's first pixel): in pixel
+    let n = n as f32;
+    // A wide interval holds a sample when it meets the image.
+    let wide = hi > 0.0 && lo < n;
+    // Else the first sample at or after lo (no earlier than the image's first pixel): in pixel
     // k = ⌊max(lo, 0)⌋ at the first fraction not below lo − k, else in pixel k + 1 at the first
     // fraction. The interval holds a sample when that one lies in the image and within hi.
-    // (Selects rather than a loop with branches: a dense mesh asks this of millions of boxes.)
+    // (Selects and non-short-circuit `&`, no branches: the triangle pass asks this of sixteen
+    // boxes at once in vector lanes, and of millions of boxes on a dense mesh.)
     let x = lo.max(0.0);
-    if x >= n as f32 {
-        return false;
-    }
-    let k = x as u32 as f32;
+    let k = x.floor();
     let r = x - k;
     let [f0, f1, f2] = *fractions;
-    let (pixel, f) = if r <= f0 {
-        (k, f0)
+    let f = if r <= f0 {
+        f0
     } else if r <= f1 {
-        (k, f1)
+        f1
     } else if r <= f2 {
-        (k, f2)
+        f2
     } else {
-        (k + 1.0, f0)
+        f0
     };
-    pixel < n as f32 && pixel + f <= hi
+    let pixel = if r <= f2 { k } else { k + 1.0 };
+    let narrow = (x < n) & (pixel < n) & (pixel + f <= hi);
+    if hi - lo >= 1.0 {
+        wide
+    } else {
+        narrow
+    }
 }
 
 /// Whether a screen triangle's bounding box holds one of the image's samples. A triangle whose
@@ -78,7 +100,7 @@ fn interval_holds_sample(lo: f32, hi: f32, n: u32, fractions: &[f32; SAMPLES_1D]
 pub(crate) fn covers_a_sample(v: &[Vec3; 3], width: u32, height: u32, fractions: &[f32; SAMPLES_1D]) -> bool {
     let lo = v[0].min(v[1]).min(v[2]);
     let hi = v[0].max(v[1]).max(v[2]);
-    interval_holds_sample(lo.x, hi.x, width, fractions) && interval_holds_sample(lo.y, hi.y, height, fractions)
+    interval_holds_sample(lo.x, hi.x, width, fractions) & interval_holds_sample(lo.y, hi.y, height, fractions)
 }
 
 #[cfg(test)]
