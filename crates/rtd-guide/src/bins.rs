@@ -71,19 +71,22 @@ impl Bins {
         Bins { spans, clipped, tiles }
     }
 
-    /// The screen triangles of the span with id `id`: those [`Projector::project`] gives its
-    /// triangle, built from the span's screen vertices as `project` builds them, so they are the
-    /// same.
+    /// Appends the screen triangles of the span with id `id` to `tris`: those
+    /// [`Projector::project`] gives its triangle, built from the span's screen vertices as
+    /// `project` builds them, so they are the same. Returns how many it appended (at most 2).
     #[inline(always)]
-    pub(crate) fn screen_tris(&self, proj: &Projector, id: u32) -> [Option<ScreenTri>; 2] {
+    pub(crate) fn push_screen_tris(&self, proj: &Projector, id: u32, tris: &mut Vec<ScreenTri>) -> usize {
         let span = &self.spans[id as usize >> CHUNK_BITS][id as usize & (CHUNK - 1)];
         if span.clipped != NOT_CLIPPED {
-            return self.clipped[span.clipped as usize];
+            let pieces = &self.clipped[span.clipped as usize];
+            tris.extend(pieces.iter().flatten());
+            return pieces.iter().flatten().count();
         }
         let v = span.v;
         let w = v.map(|p| proj.weight(p.z));
         let b = [Vec3A::X, Vec3A::Y, Vec3A::Z];
-        [Some(ScreenTri::new(v, w, b, signed_area(&v), (span.triangle, span.material))), None]
+        tris.push(ScreenTri::new(v, w, b, signed_area(&v), (span.triangle, span.material)));
+        1
     }
 }
 
@@ -228,7 +231,10 @@ mod tests {
             for (id, span) in ids.zip(&spans) {
                 let t = span.triangle as usize;
                 let want = proj.project(t, &scene.triangles[t], true).map(|s| s.as_ref().map(bits));
-                let got = bins.screen_tris(&proj, id as u32).map(|s| s.as_ref().map(bits));
+                let mut got = Vec::new();
+                bins.push_screen_tris(&proj, id as u32, &mut got);
+                let got: Vec<Vec<u32>> = got.iter().map(bits).collect();
+                let want: Vec<Vec<u32>> = want.into_iter().flatten().collect();
                 assert_eq!(got, want, "span {id} (triangle {t})");
             }
             let clipped = spans.iter().filter(|s| s.clipped != NOT_CLIPPED).count();

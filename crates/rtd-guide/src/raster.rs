@@ -155,10 +155,18 @@ impl TileDraw<'_> {
     #[inline(always)]
     fn run_inline(&self, list: &[u32], tris: &mut Vec<ScreenTri>, (depth, cover): (&mut [f32], &mut [Cover])) {
         for &i in list {
-            for t in self.bins.screen_tris(self.proj, i).into_iter().flatten() {
-                tris.push(t);
-                let index = tris.len() as u32 - 1;
-                raster_tri(self.scene, tris, index, self.tile, self.offsets, self.reach, (&mut *depth, &mut *cover));
+            let first = tris.len();
+            let added = self.bins.push_screen_tris(self.proj, i, tris);
+            for index in first..first + added {
+                raster_tri(
+                    self.scene,
+                    tris,
+                    index as u32,
+                    self.tile,
+                    self.offsets,
+                    self.reach,
+                    (&mut *depth, &mut *cover),
+                );
             }
         }
     }
