@@ -48,7 +48,16 @@ impl Bins {
     pub(crate) fn new(scene: &Scene, proj: &Projector, (tiles_x, tiles_y): (u32, u32)) -> Self {
         // Chunks of triangles in parallel, each tested LANES at a time; their spans in order.
         let mut spans: Vec<Vec<Span>> = (scene.triangles.par_chunks(CHUNK).enumerate())
-            .map(|(c, tris)| proj.spans_of(c * CHUNK, tris, (tiles_x, tiles_y)))
+            .map_init(
+                || Vec::with_capacity(CHUNK),
+                |scratch, (c, tris)| {
+                    // Into a scratch list that stays in cache, then copied at its final size: a
+                    // growing list would copy itself and fault in fresh pages as it doubled.
+                    scratch.clear();
+                    proj.spans_of(c * CHUNK, tris, (tiles_x, tiles_y), scratch);
+                    scratch.to_vec()
+                },
+            )
             .collect();
         let mut clipped = Vec::new();
         for span in spans.iter_mut().flatten().filter(|s| s.clipped != NOT_CLIPPED) {
@@ -96,10 +105,10 @@ const CHUNK_BITS: usize = 12;
 const CHUNK: usize = 1 << CHUNK_BITS;
 
 impl Projector<'_> {
-    /// The spans of scene triangles `first..first + tris.len()` (`tris`), in order: what
-    /// [`Projector::span`] gives each, tested [`LANES`] at a time (with AVX-512 where the CPU
-    /// has it).
-    fn spans_of(&self, first: usize, tris: &[Triangle], tiles: (u32, u32)) -> Vec<Span> {
+    /// Appends the spans of scene triangles `first..first + tris.len()` (`tris`) to `out`, in
+    /// order: what [`Projector::span`] gives each, tested [`LANES`] at a time (with AVX-512
+    /// where the CPU has it).
+    fn spans_of(&self, first: usize, tris: &[Triangle], tiles: (u32, u32), out: &mut Vec<Span>) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx512f")
             && std::arch::is_x86_feature_detected!("avx512vl")
@@ -107,23 +116,22 @@ impl Projector<'_> {
             && std::arch::is_x86_feature_detected!("avx512dq")
         {
             // SAFETY: the CPU has the features the function is compiled for.
-            return unsafe { self.spans_of_avx512(first, tris, tiles) };
+            return unsafe { self.spans_of_avx512(first, tris, tiles, out) };
         }
-        self.spans_in_lanes(first, tris, tiles)
+        self.spans_in_lanes(first, tris, tiles, out)
     }
 
     /// [`Projector::spans_in_lanes`] compiled for AVX-512 (sixteen f32 lanes a register).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]
-    fn spans_of_avx512(&self, first: usize, tris: &[Triangle], tiles: (u32, u32)) -> Vec<Span> {
-        self.spans_in_lanes(first, tris, tiles)
+    fn spans_of_avx512(&self, first: usize, tris: &[Triangle], tiles: (u32, u32), out: &mut Vec<Span>) {
+        self.spans_in_lanes(first, tris, tiles, out)
     }
 
     /// The body of [`Projector::spans_of`]: the lane-wise test, then a span for each triangle
     /// it keeps and the scalar path for each it says to clip.
     #[inline(always)]
-    fn spans_in_lanes(&self, first: usize, tris: &[Triangle], tiles: (u32, u32)) -> Vec<Span> {
-        let mut out = Vec::new();
+    fn spans_in_lanes(&self, first: usize, tris: &[Triangle], tiles: (u32, u32), out: &mut Vec<Span>) {
         for (b, batch) in tris.chunks(LANES).enumerate() {
             let test = self.test_lanes(batch);
             for (l, t) in batch.iter().enumerate() {
@@ -144,7 +152,6 @@ impl Projector<'_> {
                 }
             }
         }
-        out
     }
 
     /// Scene triangle `i` as the tiles see it ([`Span`]; a clipped one is marked, not yet
@@ -289,8 +296,11 @@ mod tests {
                 let mut lanes = Vec::new();
                 let mut dispatched = Vec::new();
                 for (c, tris) in scene.triangles.chunks(1000).enumerate() {
-                    lanes.extend(proj.spans_in_lanes(c * 1000, tris, tiles).iter().map(span_bits));
-                    dispatched.extend(proj.spans_of(c * 1000, tris, tiles).iter().map(span_bits));
+                    let (mut a, mut b) = (Vec::new(), Vec::new());
+                    proj.spans_in_lanes(c * 1000, tris, tiles, &mut a);
+                    proj.spans_of(c * 1000, tris, tiles, &mut b);
+                    lanes.extend(a.iter().map(span_bits));
+                    dispatched.extend(b.iter().map(span_bits));
                 }
                 assert_eq!(lanes, want, "baseline lanes, {w}x{h}");
                 assert_eq!(dispatched, want, "dispatched lanes, {w}x{h}");
