@@ -9,6 +9,7 @@
 
 use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
+use rtd_render::prefetch;
 use rtd_scene::{Aabb, AlphaMode, Camera, Scene};
 
 use crate::bins::Bins;
@@ -157,8 +158,10 @@ impl TileDraw<'_> {
         for &i in list {
             let first = tris.len();
             let added = self.bins.push_screen_tris(self.proj, i, tris);
+            // Shading reads the scene triangle a sample ends on: start loading it now, so it is
+            // in cache when the tile is shaded.
             if added > 0 {
-                prefetch_triangle(&self.scene.triangles[tris[first].triangle as usize]);
+                prefetch(&self.scene.triangles[tris[first].triangle as usize]);
             }
             for index in first..first + added {
                 raster_tri(
@@ -173,21 +176,6 @@ impl TileDraw<'_> {
             }
         }
     }
-}
-
-/// Starts loading a scene triangle into the cache (both lines it may straddle).
-#[inline(always)]
-fn prefetch_triangle(t: &rtd_scene::Triangle) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint; it reads nothing and cannot fault.
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = (t as *const rtd_scene::Triangle).cast::<i8>();
-        _mm_prefetch(p, _MM_HINT_T0);
-        _mm_prefetch(p.wrapping_add(std::mem::size_of::<rtd_scene::Triangle>() - 1), _MM_HINT_T0);
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = t;
 }
 
 /// The near clip of a view of a scene bounded by `bounds`: far enough in front of the eye to keep

@@ -15,6 +15,7 @@ pub mod integrator;
 pub mod light_tree;
 pub mod lights;
 pub mod microfacet;
+mod prefetch;
 mod render;
 pub mod sampler;
 pub mod sampling;
@@ -25,6 +26,7 @@ pub use bsdf::{Bsdf, BsdfParams, BsdfSample};
 pub use bvh::{SceneBvh, MAX_BUNDLE, NO_TRIANGLE};
 pub use film::{Film, FilmMergeError, SAMPLE_QUANTUM};
 pub use lights::{LightSelection, LightSet};
+pub use prefetch::prefetch;
 pub use render::{PathTracer, RenderScene, RenderSettings, RenderStats, Workers, MAX_DEPTH, MAX_SPP, SPP_LADDER};
 pub use sampler::Sampler;
 

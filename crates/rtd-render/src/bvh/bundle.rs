@@ -21,6 +21,7 @@ use obvhs::ray::Ray as BvhRay;
 use rtd_scene::Scene;
 
 use super::{RayShear, SceneBvh};
+use crate::prefetch::prefetch;
 
 /// Most rays in one bundle (one bit each in a `u32` mask).
 pub const MAX_BUNDLE: usize = 32;
@@ -38,24 +39,6 @@ fn bits(mut m: u32) -> impl Iterator<Item = usize> {
             i
         })
     })
-}
-
-/// Asks the CPU to start loading the cache lines of `value` (a hint: it reads nothing and
-/// cannot fault).
-#[inline(always)]
-fn prefetch<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let p = (value as *const T).cast::<i8>();
-        // SAFETY: prefetching is a hint on any address; SSE is part of x86-64.
-        unsafe {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            _mm_prefetch(p, _MM_HINT_T0);
-            _mm_prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), _MM_HINT_T0);
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
 }
 
 /// Four children's quantised planes along one axis, as floats.
