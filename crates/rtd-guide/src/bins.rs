@@ -48,16 +48,14 @@ impl Bins {
     pub(crate) fn new(scene: &Scene, proj: &Projector, (tiles_x, tiles_y): (u32, u32)) -> Self {
         // Chunks of triangles in parallel, each tested LANES at a time; their spans in order.
         let mut spans: Vec<Vec<Span>> = (scene.triangles.par_chunks(CHUNK).enumerate())
-            .map_init(
-                || Vec::with_capacity(CHUNK),
-                |scratch, (c, tris)| {
-                    // Into a scratch list that stays in cache, then copied at its final size: a
-                    // growing list would copy itself and fault in fresh pages as it doubled.
-                    scratch.clear();
-                    proj.spans_of(c * CHUNK, tris, (tiles_x, tiles_y), scratch);
-                    scratch.to_vec()
-                },
-            )
+            .map(|(c, tris)| {
+                // Room for every triangle, then shrunk in place: a growing list would copy
+                // itself as it doubled, and pages never written are never paged in.
+                let mut out = Vec::with_capacity(tris.len());
+                proj.spans_of(c * CHUNK, tris, (tiles_x, tiles_y), &mut out);
+                out.shrink_to_fit();
+                out
+            })
             .collect();
         let mut clipped = Vec::new();
         for span in spans.iter_mut().flatten().filter(|s| s.clipped != NOT_CLIPPED) {
