@@ -5,6 +5,8 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use rtd_scene::{Scene, Triangle};
 
+#[cfg(target_arch = "x86_64")]
+use crate::lanes::has_avx512;
 use crate::lanes::LANES;
 use crate::projection::{signed_area, to_camera, Projector, ScreenTri};
 use crate::sample_grid::pixels_reached;
@@ -30,12 +32,14 @@ const NOT_CLIPPED: u32 = u32::MAX;
 
 /// The triangles that draw something and where: every one in the scene's order (ties in depth
 /// keep the first), the screen triangles of those clipped at the near plane (built once: a
-/// floor crossing the near plane may reach every tile), and for each tile the indices of the
-/// spans it may draw.
+/// floor crossing the near plane may reach every tile), and for each tile the ids of the spans
+/// it may draw.
 pub(crate) struct Bins {
     /// The spans of each [`CHUNK`] of scene triangles (a span's id is its chunk's index shifted
     /// by [`CHUNK_BITS`], plus its place in the chunk's list: no copy into one list).
     spans: Vec<Vec<Span>>,
+    /// The screen triangles of each triangle clipped at the near plane, in the scene's order
+    /// ([`Span::clipped`] indexes it).
     clipped: Vec<[Option<ScreenTri>; 2]>,
     /// For each tile (row-major), the ids of the spans it may draw, in the scene's order.
     pub(crate) tiles: Vec<Vec<u32>>,
@@ -49,8 +53,9 @@ impl Bins {
         // Chunks of triangles in parallel, each tested LANES at a time; their spans in order.
         let mut spans: Vec<Vec<Span>> = (scene.triangles.par_chunks(CHUNK).enumerate())
             .map(|(c, tris)| {
-                // Room for every triangle, then shrunk in place: a growing list would copy
-                // itself as it doubled, and pages never written are never paged in.
+                // Room for every triangle, then shrunk: a growing list would copy itself as it
+                // doubled (glibc shrinks a block in place, and leaves pages never written
+                // unmapped).
                 let mut out = Vec::with_capacity(tris.len());
                 proj.spans_of(c * CHUNK, tris, (tiles_x, tiles_y), &mut out);
                 out.shrink_to_fit();
@@ -85,9 +90,9 @@ impl Bins {
     pub(crate) fn push_screen_tris(&self, proj: &Projector, id: u32, tris: &mut Vec<ScreenTri>) -> usize {
         let span = &self.spans[id as usize >> CHUNK_BITS][id as usize & (CHUNK - 1)];
         if span.clipped != NOT_CLIPPED {
-            let pieces = &self.clipped[span.clipped as usize];
-            tris.extend(pieces.iter().flatten());
-            return pieces.iter().flatten().count();
+            let before = tris.len();
+            tris.extend(self.clipped[span.clipped as usize].iter().flatten());
+            return tris.len() - before;
         }
         let v = span.v;
         let w = v.map(|p| proj.weight(p.z));
@@ -108,11 +113,7 @@ impl Projector<'_> {
     /// where the CPU has it).
     fn spans_of(&self, first: usize, tris: &[Triangle], tiles: (u32, u32), out: &mut Vec<Span>) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-            && std::arch::is_x86_feature_detected!("avx512bw")
-            && std::arch::is_x86_feature_detected!("avx512dq")
-        {
+        if has_avx512() {
             // SAFETY: the CPU has the features the function is compiled for.
             return unsafe { self.spans_of_avx512(first, tris, tiles, out) };
         }
@@ -121,7 +122,7 @@ impl Projector<'_> {
 
     /// [`Projector::spans_in_lanes`] compiled for AVX-512 (sixteen f32 lanes a register).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")] // as `has_avx512` checks
     fn spans_of_avx512(&self, first: usize, tris: &[Triangle], tiles: (u32, u32), out: &mut Vec<Span>) {
         self.spans_in_lanes(first, tris, tiles, out)
     }

@@ -13,6 +13,16 @@ use rtd_scene::Triangle;
 
 use crate::projection::{signed_area, Projector};
 
+/// Whether the CPU has the AVX-512 subsets (F, VL, BW, DQ) that the guide's lane-wise loops
+/// are compiled for where it does (the triangle pass and tile drawing).
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn has_avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+}
+
 /// Triangles tested together.
 pub(crate) const LANES: usize = 16;
 

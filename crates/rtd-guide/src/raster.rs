@@ -14,8 +14,10 @@ use rtd_scene::{Aabb, AlphaMode, Camera, Scene};
 
 use crate::bins::Bins;
 pub use crate::bins::TILE;
+#[cfg(target_arch = "x86_64")]
+use crate::lanes::has_avx512;
 use crate::projection::{drawable, Projector, ScreenTri};
-use crate::sample_grid::{pixels_reached, sample_reach};
+use crate::sample_grid::pixels_reached;
 pub use crate::sample_grid::{sample_offsets, SAMPLES, SAMPLES_1D};
 
 /// What one sample sees.
@@ -75,7 +77,7 @@ where
     let near = near_plane(bounds, cam);
     let proj = Projector::new(cam, (width, height), near);
     let offsets = sample_offsets();
-    let reach = sample_reach();
+    let reach = proj.reach;
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     let bins = Bins::new(scene, &proj, (tiles_x, tiles_y));
@@ -134,11 +136,7 @@ impl TileDraw<'_> {
     /// triangles to `tris` (with AVX-512 where the CPU has it).
     fn run(&self, list: &[u32], tris: &mut Vec<ScreenTri>, buffers: (&mut [f32], &mut [Cover])) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-            && std::arch::is_x86_feature_detected!("avx512bw")
-            && std::arch::is_x86_feature_detected!("avx512dq")
-        {
+        if has_avx512() {
             // SAFETY: the CPU has the features the function is compiled for.
             return unsafe { self.run_avx512(list, tris, buffers) };
         }
@@ -147,7 +145,7 @@ impl TileDraw<'_> {
 
     /// [`TileDraw::run_inline`] compiled for AVX-512.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")] // as `has_avx512` checks
     fn run_avx512(&self, list: &[u32], tris: &mut Vec<ScreenTri>, buffers: (&mut [f32], &mut [Cover])) {
         self.run_inline(list, tris, buffers)
     }
@@ -207,6 +205,44 @@ struct TileRect {
     h: usize,
 }
 
+/// The edge functions e0, e1, e2 of screen triangle `t` over `tile` as (A, B, C), or None when
+/// the triangle is not drawable or one edge excludes every place a sample of the tile can lie.
+#[inline(always)]
+fn edge_planes(t: &ScreenTri, tile: TileRect) -> Option<[(f32, f32, f32); 3]> {
+    let TileRect { x0, y0, w: tw, h: th } = tile;
+    let [a, b, c] = t.v;
+    // Edge functions as planes e(p) = A·(x − x0) + B·(y − y0) + C over the tile, set up in f64
+    // (clipped vertices can project far off screen) and normalised by twice the signed area:
+    // e0, e1, e2 are the screen-space barycentrics of vertices a, b, c. Either winding is drawn.
+    let (ax, ay, bx, by, cx, cy) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64);
+    let area = t.area;
+    if !drawable(area) {
+        return None;
+    }
+    let (ox, oy) = (x0 as f64, y0 as f64);
+    let inv_area = 1.0 / area;
+    let plane = |px: f64, py: f64, qx: f64, qy: f64| {
+        let (ea, eb) = ((py - qy) * inv_area, (qx - px) * inv_area);
+        let ec = (px * qy - py * qx) * inv_area + ea * ox + eb * oy;
+        (ea as f32, eb as f32, ec as f32)
+    };
+    let (a0, b0, c0) = plane(bx, by, cx, cy);
+    let (a1, b1, c1) = plane(cx, cy, ax, ay);
+    // e2 has its own plane rather than 1 − e0 − e1: near the edge a–b of a triangle clipped at the
+    // near plane, e0 ≈ 1 and e2 is far below the rounding of 1 − e0 − e1 (a vertex projected
+    // millions of pixels away leaves e2 changing by ~1e-7 per pixel), which let samples up to
+    // a pixel outside that edge in.
+    let (a2, b2, c2) = plane(ax, ay, bx, by);
+    // Reject the tile when one edge is negative everywhere samples can lie: x ∈ [−1, tw+1],
+    // y ∈ [−1, th+1] in tile coordinates (pixel centres ± the filter radius).
+    let (w, h) = (tw as f32 + 1.0, th as f32 + 1.0);
+    let max_over = |ea: f32, eb: f32, ec: f32| ec + (ea * w).max(-ea) + (eb * h).max(-eb);
+    if max_over(a0, b0, c0) < 0.0 || max_over(a1, b1, c1) < 0.0 || max_over(a2, b2, c2) < 0.0 {
+        return None;
+    }
+    Some([(a0, b0, c0), (a1, b1, c1), (a2, b2, c2)])
+}
+
 /// Rasterises screen triangle `index` into a tile's sample buffers, depth keys and coverage
 /// (greater depth key wins; ties keep the first).
 #[inline(always)]
@@ -232,37 +268,11 @@ fn raster_tri(
     if px0 >= px1 || py0 >= py1 {
         return;
     }
-    // Edge functions as planes e(p) = A·(x − x0) + B·(y − y0) + C over the tile, set up in f64
-    // (clipped vertices can project far off screen) and normalised by twice the signed area:
-    // e0, e1, e2 are the screen-space barycentrics of vertices a, b, c. Either winding is drawn.
-    let (ax, ay, bx, by, cx, cy) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64);
-    let area = t.area;
-    if !drawable(area) {
+    let Some([(a0, b0, c0), (a1, b1, c1), (a2, b2, c2)]) = edge_planes(t, tile) else {
         return;
-    }
-    let (ox, oy) = (x0 as f64, y0 as f64);
-    let inv_area = 1.0 / area;
-    let plane = |px: f64, py: f64, qx: f64, qy: f64| {
-        let (ea, eb) = ((py - qy) * inv_area, (qx - px) * inv_area);
-        let ec = (px * qy - py * qx) * inv_area + ea * ox + eb * oy;
-        (ea as f32, eb as f32, ec as f32)
     };
-    let (a0, b0, c0) = plane(bx, by, cx, cy);
-    let (a1, b1, c1) = plane(cx, cy, ax, ay);
-    // e2 has its own plane rather than 1 − e0 − e1: near the edge a–b of a triangle clipped at the
-    // near plane, e0 ≈ 1 and e2 is far below the rounding of 1 − e0 − e1 (a vertex projected
-    // millions of pixels away leaves e2 changing by ~1e-7 per pixel), which let samples up to
-    // a pixel outside that edge in.
-    let (a2, b2, c2) = plane(ax, ay, bx, by);
     // Depth key is affine in screen space: key = c.z + e0·(a.z − c.z) + e1·(b.z − c.z).
     let (ka, kb) = (a.z - c.z, b.z - c.z);
-    // Reject the tile when one edge is negative everywhere samples can lie: x ∈ [−1, tw+1],
-    // y ∈ [−1, th+1] in tile coordinates (pixel centres ± the filter radius).
-    let (w, h) = (tw as f32 + 1.0, th as f32 + 1.0);
-    let max_over = |ea: f32, eb: f32, ec: f32| ec + (ea * w).max(-ea) + (eb * h).max(-eb);
-    if max_over(a0, b0, c0) < 0.0 || max_over(a1, b1, c1) < 0.0 || max_over(a2, b2, c2) < 0.0 {
-        return;
-    }
     let material = &scene.materials[t.material as usize];
     let cutoff = match material.alpha_mode {
         AlphaMode::Mask(c) => Some(c),
@@ -323,6 +333,7 @@ fn raster_tri(
 mod tests {
     use super::*;
     use crate::projection::to_camera;
+    use crate::sample_grid::sample_reach;
     use crate::test_soup::{project_all, soup};
 
     /// Draws `tris` (all of them, in order) into one tile: its depth keys and coverage.

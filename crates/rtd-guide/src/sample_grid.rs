@@ -118,6 +118,33 @@ mod tests {
         assert!(mean.length() < 1e-6);
     }
 
+    /// Intervals off the image or unbounded: answered by whether they hold one of the image's
+    /// sample coordinates, as for intervals inside it (the branch-free test computes every
+    /// case's value and selects, so each must be right on its own).
+    #[test]
+    fn the_sample_test_answers_intervals_off_the_image_and_unbounded() {
+        let f = sample_fractions();
+        let n = 5u32;
+        let (inf, last) = (f32::INFINITY, n as f32 - 1.0 + f[SAMPLES_1D - 1]);
+        let cases = [
+            ((-inf, inf), true),
+            ((-inf, -0.5), false),
+            ((-inf, f[0]), true),
+            ((-3.0, -2.5), false),
+            ((-0.3, f[0] - 0.1), false),
+            ((last + 0.1, inf), false),
+            ((n as f32, n as f32 + 0.4), false),
+            ((n as f32 + 2.0, n as f32 + 9.0), false),
+            ((last - 0.01, last + 0.01), true),
+            ((1e30, 2e30), false),
+            ((-2e30, -1e30), false),
+            ((-1e30, 1e30), true),
+        ];
+        for ((lo, hi), want) in cases {
+            assert_eq!(interval_holds_sample(lo, hi, n, &f), want, "[{lo}, {hi}] in {n} pixels");
+        }
+    }
+
     #[test]
     fn the_sample_test_never_drops_an_interval_that_holds_a_sample() {
         let fractions = sample_fractions();

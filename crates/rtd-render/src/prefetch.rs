@@ -12,8 +12,8 @@ pub fn prefetch<T>(value: &T) {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
         let p = (value as *const T).cast::<i8>();
         let size = std::mem::size_of::<T>();
-        // One address in every 64-byte line the value covers: each line start it spans, and its
-        // last byte.
+        // An address in each 64-byte line the value covers: one every 64 bytes from its start,
+        // and its last byte.
         let mut at = 0;
         while at < size {
             // SAFETY: prefetching is a hint on any address; SSE is part of x86-64.
