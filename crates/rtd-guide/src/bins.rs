@@ -71,7 +71,7 @@ impl Bins {
         let mut tiles: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
         for (c, chunk) in spans.iter().enumerate() {
             for (k, span) in chunk.iter().enumerate() {
-                let id = (c << CHUNK_BITS | k) as u32;
+                let id = span_id(c, k);
                 let [tx0, tx1, ty0, ty1] = span.tiles.map(u32::from);
                 for ty in ty0..=ty1 {
                     for tx in tx0..=tx1 {
@@ -83,12 +83,18 @@ impl Bins {
         Bins { spans, clipped, tiles }
     }
 
+    /// The span with id `id` ([`span_id`]).
+    #[inline(always)]
+    fn span_by_id(&self, id: u32) -> &Span {
+        &self.spans[id as usize >> CHUNK_BITS][id as usize & (CHUNK - 1)]
+    }
+
     /// Appends the screen triangles of the span with id `id` to `tris`: those
     /// [`Projector::project`] gives its triangle, built from the span's screen vertices as
     /// `project` builds them, so they are the same. Returns how many it appended (at most 2).
     #[inline(always)]
     pub(crate) fn push_screen_tris(&self, proj: &Projector, id: u32, tris: &mut Vec<ScreenTri>) -> usize {
-        let span = &self.spans[id as usize >> CHUNK_BITS][id as usize & (CHUNK - 1)];
+        let span = self.span_by_id(id);
         if span.clipped != NOT_CLIPPED {
             let before = tris.len();
             tris.extend(self.clipped[span.clipped as usize].iter().flatten());
@@ -106,6 +112,13 @@ impl Bins {
 const CHUNK_BITS: usize = 12;
 /// Triangles a parallel job of the triangle pass tests.
 const CHUNK: usize = 1 << CHUNK_BITS;
+
+/// The id of span `index` of chunk `chunk`: the chunk shifted by [`CHUNK_BITS`], plus the
+/// index (a chunk has at most [`CHUNK`] spans).
+#[inline(always)]
+fn span_id(chunk: usize, index: usize) -> u32 {
+    (chunk << CHUNK_BITS | index) as u32
+}
 
 impl Projector<'_> {
     /// Appends the spans of scene triangles `first..first + tris.len()` (`tris`) to `out`, in
@@ -136,16 +149,7 @@ impl Projector<'_> {
             for (l, t) in batch.iter().enumerate() {
                 let i = first + b * LANES + l;
                 if test.keep[l] {
-                    let v = test.vertices(l);
-                    if let Some(range) = self.tile_range(&v, tiles) {
-                        out.push(Span {
-                            v,
-                            triangle: i as u32,
-                            material: t.material,
-                            tiles: range,
-                            clipped: NOT_CLIPPED,
-                        });
-                    }
+                    out.extend(self.unclipped_span(test.vertices(l), i, t, tiles));
                 } else if test.clip[l] {
                     out.extend(self.span(i, t, tiles));
                 }
@@ -156,7 +160,8 @@ impl Projector<'_> {
     /// Scene triangle `i` as the tiles see it ([`Span`]; a clipped one is marked, not yet
     /// placed), or None when it draws nothing. Most triangles of a dense mesh are whole in front
     /// of the eye and cover no sample: their screen box settles it, without building their
-    /// screen triangles.
+    /// screen triangles. The pass in lanes gives the same for every triangle and calls this for
+    /// those it finds crossing the near plane.
     #[inline(always)]
     fn span(&self, i: usize, t: &rtd_scene::Triangle, tiles: (u32, u32)) -> Option<Span> {
         let c = t.p.map(|p| to_camera(self.cam, p));
@@ -167,8 +172,7 @@ impl Projector<'_> {
             if !v.iter().all(|p| p.is_finite()) || !self.draws_a_sample(&v, signed_area(&v)) {
                 return None;
             }
-            let tiles = self.tile_range(&v, tiles)?;
-            return Some(Span { v, triangle, material, tiles, clipped: NOT_CLIPPED });
+            return self.unclipped_span(v, i, t, tiles);
         }
         let pieces = self.project(i, t, true).map(|s| s.and_then(|s| self.tile_range(&s.v, tiles)));
         let tiles = match pieces {
@@ -176,6 +180,14 @@ impl Projector<'_> {
             [a, b] => a.or(b)?,
         };
         Some(Span { v: [Vec3::ZERO; 3], triangle, material, tiles, clipped: 0 })
+    }
+
+    /// The span of scene triangle `i` (`t`), whole in front of the near plane with screen
+    /// vertices `v` and drawing a sample, or None when it reaches no pixel of the image.
+    #[inline(always)]
+    fn unclipped_span(&self, v: [Vec3; 3], i: usize, t: &Triangle, tiles: (u32, u32)) -> Option<Span> {
+        let tiles = self.tile_range(&v, tiles)?;
+        Some(Span { v, triangle: i as u32, material: t.material, tiles, clipped: NOT_CLIPPED })
     }
 
     /// The tiles holding the pixels whose samples a screen triangle's bounding box can touch
@@ -230,15 +242,14 @@ mod tests {
             let proj = Projector::new(&cam, (61, 47), 1e-3);
             let tiles = (61u32.div_ceil(TILE), 47u32.div_ceil(TILE));
             let bins = Bins::new(&scene, &proj, tiles);
-            let ids =
-                bins.spans.iter().enumerate().flat_map(|(c, chunk)| (0..chunk.len()).map(move |k| c << CHUNK_BITS | k));
+            let ids = bins.spans.iter().enumerate().flat_map(|(c, chunk)| (0..chunk.len()).map(move |k| span_id(c, k)));
             let spans: Vec<&Span> = bins.spans.iter().flatten().collect();
             assert!(spans.len() > 500, "{} spans", spans.len());
             for (id, span) in ids.zip(&spans) {
                 let t = span.triangle as usize;
                 let want = proj.project(t, &scene.triangles[t], true).map(|s| s.as_ref().map(bits));
                 let mut got = Vec::new();
-                bins.push_screen_tris(&proj, id as u32, &mut got);
+                bins.push_screen_tris(&proj, id, &mut got);
                 let got: Vec<Vec<u32>> = got.iter().map(bits).collect();
                 let want: Vec<Vec<u32>> = want.into_iter().flatten().collect();
                 assert_eq!(got, want, "span {id} (triangle {t})");

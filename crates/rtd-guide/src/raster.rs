@@ -77,7 +77,6 @@ where
     let near = near_plane(bounds, cam);
     let proj = Projector::new(cam, (width, height), near);
     let offsets = sample_offsets();
-    let reach = proj.reach;
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     let bins = Bins::new(scene, &proj, (tiles_x, tiles_y));
@@ -98,7 +97,7 @@ where
             tris.clear();
             let tile = TileRect { x0, y0, w: tw, h: th };
             let list = &bins.tiles[(ty as u32 * tiles_x + tx) as usize];
-            let draw = TileDraw { scene, bins: &bins, proj: &proj, offsets: &offsets, reach, tile };
+            let draw = TileDraw { scene, bins: &bins, proj: &proj, offsets: &offsets, tile };
             draw.run(list, &mut tris, (&mut depth[..n], &mut cover[..n]));
             let footprints = Footprints { tris: &tris };
             for (k, px) in cover[..n].chunks(SAMPLES).enumerate() {
@@ -127,7 +126,6 @@ struct TileDraw<'a> {
     bins: &'a Bins,
     proj: &'a Projector<'a>,
     offsets: &'a [Vec2; SAMPLES],
-    reach: f32,
     tile: TileRect,
 }
 
@@ -168,7 +166,7 @@ impl TileDraw<'_> {
                     index as u32,
                     self.tile,
                     self.offsets,
-                    self.reach,
+                    self.proj.reach,
                     (&mut *depth, &mut *cover),
                 );
             }

@@ -115,6 +115,17 @@ fn slab_children<const WIDE: bool>(
     child_rays
 }
 
+/// The arguments of one [`SceneBvh::occluded_bundle_leaving`] call, as its two compilations
+/// of the traversal take them.
+#[derive(Clone, Copy)]
+struct Bundle<'a> {
+    origin: Vec3,
+    normal: Vec3,
+    dirs: &'a [Vec3],
+    tmax: f32,
+    from: u32,
+}
+
 impl SceneBvh {
     /// Which of the rays `origin + t·dirs[i]`, t in (0, tmax), are blocked, as a bit mask (bit
     /// i for `dirs[i]`), for rays that leave scene triangle `from` (not tested, as in
@@ -135,12 +146,13 @@ impl SceneBvh {
         tmax: f32,
         from: u32,
     ) -> u32 {
+        let rays = Bundle { origin, normal, dirs, tmax, from };
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has the feature the function is compiled for.
-            return unsafe { self.bundle_avx2(scene, origin, normal, dirs, tmax, from) };
+            return unsafe { self.bundle_avx2(scene, rays) };
         }
-        self.bundle_inline::<false>(scene, origin, normal, dirs, tmax, from)
+        self.bundle_inline::<false>(scene, rays)
     }
 
     /// Starts loading every child of `node` in `visit` (its node, or its leaf's triangles)
@@ -164,22 +176,15 @@ impl SceneBvh {
     /// register per plane; 9% less AO time on a 2M-triangle mesh than two 4-lane groups).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn bundle_avx2(&self, scene: &Scene, origin: Vec3, normal: Vec3, dirs: &[Vec3], tmax: f32, from: u32) -> u32 {
-        self.bundle_inline::<true>(scene, origin, normal, dirs, tmax, from)
+    fn bundle_avx2(&self, scene: &Scene, rays: Bundle) -> u32 {
+        self.bundle_inline::<true>(scene, rays)
     }
 
     /// The body of [`SceneBvh::occluded_bundle_leaving`]; `WIDE` picks the slab test's lanes
     /// ([`slab_children`]).
     #[inline(always)]
-    fn bundle_inline<const WIDE: bool>(
-        &self,
-        scene: &Scene,
-        origin: Vec3,
-        normal: Vec3,
-        dirs: &[Vec3],
-        tmax: f32,
-        from: u32,
-    ) -> u32 {
+    fn bundle_inline<const WIDE: bool>(&self, scene: &Scene, rays: Bundle) -> u32 {
+        let Bundle { origin, normal, dirs, tmax, from } = rays;
         assert!(dirs.len() <= MAX_BUNDLE, "at most {MAX_BUNDLE} rays per bundle");
         let nodes = &self.bvh.nodes;
         // The shared origin in BVH space (see `bvh_ray`).
@@ -313,8 +318,9 @@ mod tests {
                 let radius = [0.05, 0.3, f32::INFINITY][k % 3];
                 let mask = bvh.occluded_bundle_leaving(&s, o, ng, &dirs, radius, from as u32);
                 // Both slab-test widths give it, whichever the CPU dispatched to.
-                assert_eq!(bvh.bundle_inline::<true>(&s, o, ng, &dirs, radius, from as u32), mask);
-                assert_eq!(bvh.bundle_inline::<false>(&s, o, ng, &dirs, radius, from as u32), mask);
+                let rays = Bundle { origin: o, normal: ng, dirs: &dirs, tmax: radius, from: from as u32 };
+                assert_eq!(bvh.bundle_inline::<true>(&s, rays), mask);
+                assert_eq!(bvh.bundle_inline::<false>(&s, rays), mask);
                 for (i, d) in dirs.iter().enumerate() {
                     let single = bvh.occluded_leaving(&s, o, *d, radius, from as u32);
                     assert_eq!(mask >> i & 1 == 1, single, "scene {n}, point {k}, ray {i}");
