@@ -5,12 +5,12 @@
 
 use std::hint::black_box;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use criterion::{criterion_group, Criterion, Throughput};
-use glam::{Vec2, Vec3};
+use rtd::bench::traversal::{bounce_rays, camera_rays, traversal_mrays_per_s, ProbeRay};
 use rtd::guide::{GuidePass, GuideSettings};
-use rtd::render::{PathTracer, RenderScene, RenderSettings, Sampler, SceneBvh};
+use rtd::render::{PathTracer, RenderScene, RenderSettings, SceneBvh};
 use rtd::scene::{load_scene, Scene};
 
 const SCENES: [&str; 4] = ["cornell-box", "glass-and-metals", "textured-interior", "small-lights"];
@@ -19,15 +19,9 @@ fn scene(name: &str) -> Scene {
     load_scene(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(format!("{name}.gltf"))).unwrap()
 }
 
-/// Rays from the camera through random film points, as (origin, direction).
-fn camera_rays(s: &Scene, n: u32) -> Vec<(Vec3, Vec3)> {
-    let cam = s.select_camera(None).unwrap().0;
-    (0..n)
-        .map(|i| {
-            let u = Sampler::new(1, 0, i).get_2d();
-            cam.ray(u * Vec2::splat(256.0), 256, 256)
-        })
-        .collect()
+/// Camera rays through `n` points of a 256² film of the scene's camera.
+fn scene_camera_rays(s: &Scene, n: u32) -> Vec<ProbeRay> {
+    camera_rays(&s.select_camera(None).unwrap().0, (256, 256), n)
 }
 
 fn bvh_build(c: &mut Criterion) {
@@ -45,10 +39,10 @@ fn traversal(c: &mut Criterion) {
     for name in SCENES {
         let s = scene(name);
         let bvh = SceneBvh::build(&s);
-        let rays = camera_rays(&s, 4096);
+        let rays = scene_camera_rays(&s, 4096);
         g.throughput(Throughput::Elements(rays.len() as u64));
         g.bench_function(name, |b| {
-            b.iter(|| rays.iter().filter(|(o, d)| bvh.intersect(&s, *o, *d, f32::INFINITY).is_some()).count())
+            b.iter(|| rays.iter().filter(|r| bvh.intersect(&s, r.origin, r.dir, f32::INFINITY).is_some()).count())
         });
     }
     g.finish();
@@ -120,7 +114,8 @@ fn guide_share(resolutions: &[(u32, u32)], scenes: &[&str]) {
     }
 }
 
-/// Integrator rays/s against raw primary-ray traversal rays/s on the Cornell box, one run.
+/// Integrator rays/s against raw closest-hit traversal rays/s on the Cornell box, one run, for
+/// camera rays and for one diffuse bounce from each camera hit (incoherent).
 fn overhead_ratio(seconds: f64) {
     let s = scene("cornell-box");
     let cam = s.select_camera(None).unwrap().0;
@@ -128,25 +123,17 @@ fn overhead_ratio(seconds: f64) {
     let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(256, 256)).unwrap();
     let mut film = tracer.film();
     let stats = tracer.render_for(&mut film, Duration::from_secs_f64(seconds), &rtd::image::Quiet).unwrap();
-    let integrator = stats.rays as f64 / stats.seconds;
-    let rays = camera_rays(&s, 1 << 16);
-    let bvh = &prepared.bvh;
-    let t = Instant::now();
-    let mut n = 0u64;
-    // Raw traversal on all cores, like the integrator.
-    use rayon::prelude::*;
-    while t.elapsed().as_secs_f64() < seconds {
-        let hits = rays.par_iter().filter(|(o, d)| bvh.intersect(&s, *o, *d, f32::INFINITY).is_some()).count();
-        black_box(hits);
-        n += rays.len() as u64;
-    }
-    let raw = n as f64 / t.elapsed().as_secs_f64();
+    let integrator = stats.rays as f64 / stats.seconds / 1e6;
+    let cameras = scene_camera_rays(&s, 1 << 16);
+    let bounces = bounce_rays(&prepared, &cameras);
+    let (camera, bounce) =
+        (traversal_mrays_per_s(&prepared, &cameras, seconds), traversal_mrays_per_s(&prepared, &bounces, seconds));
     println!(
-        "cornell-box 256x256: integrator {:.2} M rays/s ({:.3} M paths/s), raw primary traversal {:.2} M rays/s, ratio {:.2}",
-        integrator / 1e6,
+        "cornell-box 256x256: integrator {integrator:.2} M rays/s ({:.3} M paths/s); raw traversal {camera:.2} M rays/s \
+         on camera rays (ratio {:.2}), {bounce:.2} M rays/s on diffuse bounces (ratio {:.2})",
         stats.paths as f64 / stats.seconds / 1e6,
-        raw / 1e6,
-        integrator / raw
+        integrator / camera,
+        integrator / bounce
     );
 }
 

@@ -47,3 +47,26 @@ fn etrt_report_has_every_image_and_consistent_numbers() {
     let (again, _) = run_etrt(&scene, &model, &options, None, &dir.path().join("cache"), &Quiet).unwrap();
     assert!(again.reference.contains("cached") && !again.reference.contains("rendered"), "{}", again.reference);
 }
+
+#[test]
+fn speed_report_holds_the_render_against_raw_traversal() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
+    let scene = SceneView::load(&path, &CameraChoice::Default, None).unwrap();
+    let model = Denoiser::builtin().unwrap();
+    let report = rtd::bench::speed::run_speed(&scene, &model, (32, 32), 1, 1, &Quiet).unwrap();
+    assert_eq!(report.runs, 1);
+    for rate in [report.raw_camera_mrays_per_s, report.raw_bounce_mrays_per_s, report.mrays_per_s.median] {
+        assert!(rate.is_finite() && rate > 0.0, "{report:?}");
+    }
+    let md = report.markdown();
+    assert!(md.contains("raw traversal M rays/s, camera rays") && md.contains("diffuse bounces"), "{md}");
+    assert!(md.contains("render rays/s ÷ this"), "{md}");
+    // The JSON keeps the raw rates, and a report written before they existed still reads.
+    let json = serde_json::to_value(&report).unwrap();
+    assert!(json["raw_bounce_mrays_per_s"].as_f64().unwrap() > 0.0);
+    let mut old = json.clone();
+    old.as_object_mut().unwrap().remove("raw_camera_mrays_per_s");
+    old.as_object_mut().unwrap().remove("raw_bounce_mrays_per_s");
+    let old: rtd::bench::speed::SpeedReport = serde_json::from_value(old).unwrap();
+    assert_eq!(old.raw_bounce_mrays_per_s, 0.0);
+}

@@ -1,6 +1,7 @@
 //! rtd's benchmarks, all on the one [`rtd_pipeline::Pipeline`]: the equal-time comparison
 //! ([`etrt`]) of a denoised low-spp render against plain path tracing given the same wall time,
-//! the multi-scene [`suite`] with its spp sweep, [`speed`] figures, and the [`validation`]
+//! the multi-scene [`suite`] with its spp sweep, [`speed`] figures (against raw BVH
+//! [`traversal`]), and the [`validation`]
 //! comparison on a dataset's held-out views, with pictures ([`figures`]).
 
 #![warn(missing_docs)]
@@ -14,6 +15,7 @@ pub mod report_files;
 pub mod scaling;
 pub mod speed;
 pub mod suite;
+pub mod traversal;
 pub mod validation;
 
 pub use error::BenchError;

@@ -1,5 +1,6 @@
 //! `rtd bench speed`: render throughput (paths/s, rays/s), guide seconds per megapixel and
-//! denoise seconds per megapixel, each the median of several runs with the min–max range.
+//! denoise seconds per megapixel, each the median of several runs with the min–max range, and
+//! the render's rays/s as a share of raw closest-hit traversal on the same scene.
 
 use rtd_denoise::Denoiser;
 use rtd_image::{Progress, Quiet};
@@ -7,7 +8,13 @@ use rtd_pipeline::{Budget, Pipeline, SceneView};
 use rtd_render::RenderSettings;
 use serde::{Deserialize, Serialize};
 
+use crate::traversal::{bounce_rays, camera_rays, traversal_mrays_per_s};
 use crate::BenchError;
+
+/// Rays in each raw traversal set.
+const PROBE_RAYS: u32 = 1 << 16;
+/// Seconds each raw traversal rate is measured for.
+const PROBE_SECONDS: f64 = 1.0;
 
 /// Median and range of repeated measurements.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -51,6 +58,13 @@ pub struct SpeedReport {
     pub denoise_s_per_mpixel: Spread,
     /// The denoiser's self-ensemble passes.
     pub denoise_passes: usize,
+    /// Raw closest-hit traversal of camera rays, millions of rays per second (one measurement).
+    #[serde(default)]
+    pub raw_camera_mrays_per_s: f64,
+    /// Raw closest-hit traversal of one diffuse bounce from each camera hit (incoherent rays),
+    /// millions of rays per second (one measurement).
+    #[serde(default)]
+    pub raw_bounce_mrays_per_s: f64,
 }
 
 /// Measures `runs` times each: an `spp` render of `view` at `width`×`height`, its guide pass
@@ -78,6 +92,11 @@ pub fn run_speed(
             break;
         }
     }
+    // Raw traversal after the renders, on the same pool and scene.
+    let cameras = camera_rays(&view.camera, (width, height), PROBE_RAYS);
+    let bounces = bounce_rays(&view.scene, &cameras);
+    let raw_camera = traversal_mrays_per_s(&view.scene, &cameras, PROBE_SECONDS);
+    let raw_bounce = traversal_mrays_per_s(&view.scene, &bounces, PROBE_SECONDS);
     Ok(SpeedReport {
         scene: view.path.display().to_string(),
         width,
@@ -89,6 +108,8 @@ pub fn run_speed(
         guide_s_per_mpixel: Spread::of(guide_t),
         denoise_s_per_mpixel: Spread::of(den_t),
         denoise_passes: denoiser.ensemble_passes(),
+        raw_camera_mrays_per_s: raw_camera,
+        raw_bounce_mrays_per_s: raw_bounce,
     })
 }
 
@@ -96,8 +117,12 @@ impl SpeedReport {
     /// One Markdown table row per figure.
     pub fn markdown(&self) -> String {
         let row = |name: &str, s: &Spread| format!("| {name} | {:.3} | {:.3}–{:.3} |\n", s.median, s.min, s.max);
+        let raw = |name: &str, raw: f64| {
+            let share = self.mrays_per_s.median / raw;
+            format!("| {name} | {raw:.3} | render rays/s ÷ this: {share:.2} |\n")
+        };
         format!(
-            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}",
+            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}{}{}",
             self.scene,
             self.width,
             self.height,
@@ -113,7 +138,9 @@ impl SpeedReport {
                     if self.denoise_passes == 1 { "" } else { "es" }
                 ),
                 &self.denoise_s_per_mpixel
-            )
+            ),
+            raw("raw traversal M rays/s, camera rays", self.raw_camera_mrays_per_s),
+            raw("raw traversal M rays/s, diffuse bounces", self.raw_bounce_mrays_per_s),
         )
     }
 }

@@ -1,0 +1,149 @@
+//! Raw BVH traversal throughput, the yardstick for the integrator's rays/s: closest-hit queries
+//! alone, on all cores, for camera rays (coherent) and for one cosine-distributed bounce from
+//! each camera hit (incoherent, as the integrator's secondary rays are). The integrator's rays/s
+//! over these is the share of its time that traversal would take if shading, sampling and light
+//! selection cost nothing.
+
+use std::time::Instant;
+
+use glam::Vec2;
+use glam::Vec3;
+use rayon::prelude::*;
+use rtd_render::sampling::{sample_cosine_hemisphere, Frame};
+use rtd_render::surface::Surface;
+use rtd_render::{RenderScene, Sampler, NO_TRIANGLE};
+use rtd_scene::Camera;
+
+/// One closest-hit query: origin, unit direction, and the scene triangle the ray leaves
+/// ([`NO_TRIANGLE`] for camera rays), as the integrator passes it.
+#[derive(Clone, Copy, Debug)]
+pub struct ProbeRay {
+    /// Origin.
+    pub origin: Vec3,
+    /// Unit direction.
+    pub dir: Vec3,
+    /// The triangle the ray leaves, skipped by the query.
+    pub leaving: u32,
+}
+
+/// Camera rays through `n` points of a `width`×`height` film, placed by the sampler of seed 1.
+pub fn camera_rays(camera: &Camera, (width, height): (u32, u32), n: u32) -> Vec<ProbeRay> {
+    let film = Vec2::new(width as f32, height as f32);
+    (0..n)
+        .map(|i| {
+            let (origin, dir) = camera.ray(Sampler::new(1, 0, i).get_2d() * film, width, height);
+            ProbeRay { origin, dir, leaving: NO_TRIANGLE }
+        })
+        .collect()
+}
+
+/// One diffuse bounce from the hit of each ray in `rays` that hits something: a cosine-weighted
+/// direction about the geometric normal on the side the ray came from, leaving from the hit
+/// point offset off the surface (what the integrator traces after a diffuse vertex).
+pub fn bounce_rays(scene: &RenderScene, rays: &[ProbeRay]) -> Vec<ProbeRay> {
+    rays.iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let hit = scene.bvh.intersect_leaving(&scene.scene, r.origin, r.dir, f32::INFINITY, r.leaving)?;
+            let s = Surface::new(&scene.scene, &hit);
+            let n = if r.dir.dot(s.ng) < 0.0 { s.ng } else { -s.ng };
+            let local = sample_cosine_hemisphere(Sampler::new(2, 0, i as u32).get_2d());
+            let dir = Frame::from_normal(n).to_world(local).normalize_or_zero();
+            (dir != Vec3::ZERO).then(|| ProbeRay { origin: s.spawn_origin(dir), dir, leaving: s.triangle })
+        })
+        .collect()
+}
+
+/// Millions of closest-hit queries per second over `rays`, traced on all cores (rayon's pool),
+/// the whole set again and again until at least `seconds` have passed (once at least).
+pub fn traversal_mrays_per_s(scene: &RenderScene, rays: &[ProbeRay], seconds: f64) -> f64 {
+    let start = Instant::now();
+    let mut traced = 0u64;
+    loop {
+        let hits = rays
+            .par_iter()
+            .filter(|r| scene.bvh.intersect_leaving(&scene.scene, r.origin, r.dir, f32::INFINITY, r.leaving).is_some())
+            .count();
+        std::hint::black_box(hits);
+        traced += rays.len() as u64;
+        if start.elapsed().as_secs_f64() >= seconds || rays.is_empty() {
+            break;
+        }
+    }
+    traced as f64 / start.elapsed().as_secs_f64().max(1e-9) / 1e6
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rtd_scene::{Material, Scene, Triangle};
+
+    /// A closed box of 12 triangles around the origin, seen from inside.
+    fn closed_box() -> RenderScene {
+        let mut scene = Scene::default();
+        scene.materials.push(Material::default());
+        let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        // Each face as two triangles; winding does not matter to the traversal.
+        for axis in 0..3 {
+            for side in [-1.0f32, 1.0] {
+                let corner = |a: f32, b: f32| {
+                    let mut v = [0.0; 3];
+                    v[axis] = side;
+                    v[(axis + 1) % 3] = a;
+                    v[(axis + 2) % 3] = b;
+                    c(v[0], v[1], v[2])
+                };
+                let (p00, p10, p11, p01) = (corner(-1., -1.), corner(1., -1.), corner(1., 1.), corner(-1., 1.));
+                for p in [[p00, p10, p11], [p00, p11, p01]] {
+                    let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+                    scene.triangles.push(Triangle { p, n: [n; 3], uv: [Vec2::ZERO; 3], material: 0 });
+                }
+            }
+        }
+        RenderScene::new(scene)
+    }
+
+    #[test]
+    fn bounces_inside_a_closed_box_all_hit_another_wall() {
+        let scene = closed_box();
+        let from_centre: Vec<ProbeRay> = (0..500)
+            .map(|i| {
+                let u = Sampler::new(3, 0, i).get_2d();
+                let z = 1.0 - 2.0 * u.x;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let phi = std::f32::consts::TAU * u.y;
+                ProbeRay { origin: Vec3::ZERO, dir: Vec3::new(r * phi.cos(), r * phi.sin(), z), leaving: NO_TRIANGLE }
+            })
+            .collect();
+        let bounces = bounce_rays(&scene, &from_centre);
+        // Every ray from the centre hits a wall, and every bounce goes back into the box.
+        assert_eq!(bounces.len(), from_centre.len());
+        for b in &bounces {
+            assert!(b.origin.abs().max_element() <= 1.0 + 1e-4, "{b:?}");
+            let hit = scene.bvh.intersect_leaving(&scene.scene, b.origin, b.dir, f32::INFINITY, b.leaving);
+            let hit = hit.expect("a bounce inside a closed box must hit a wall");
+            assert_ne!(hit.triangle, b.leaving);
+            assert!(hit.t > 0.0);
+        }
+        // Cosine-distributed about the inward normal: the mean cosine is 2/3.
+        let mean_cos: f32 = bounces
+            .iter()
+            .map(|b| {
+                let q = b.origin;
+                let axis = (0..3).max_by(|&i, &j| q[i].abs().total_cmp(&q[j].abs())).unwrap();
+                -b.dir[axis] * q[axis].signum()
+            })
+            .sum::<f32>()
+            / bounces.len() as f32;
+        assert!((mean_cos - 2.0 / 3.0).abs() < 0.03, "mean cosine {mean_cos}");
+    }
+
+    #[test]
+    fn traversal_rate_counts_every_pass() {
+        let scene = closed_box();
+        let rays = vec![ProbeRay { origin: Vec3::ZERO, dir: Vec3::X, leaving: NO_TRIANGLE }; 1000];
+        let rate = traversal_mrays_per_s(&scene, &rays, 0.01);
+        assert!(rate.is_finite() && rate > 0.0, "{rate}");
+        assert_eq!(traversal_mrays_per_s(&scene, &[], 0.01), 0.0);
+    }
+}
