@@ -1,4 +1,5 @@
-//! `rtd bench etrt` and `suite`: structure and invariants (timings themselves are not tested).
+//! `rtd bench etrt`, `suite` and `speed`: structure and invariants (timings themselves are not
+//! tested).
 
 use std::path::Path;
 
@@ -55,18 +56,29 @@ fn speed_report_holds_the_render_against_raw_traversal() {
     let model = Denoiser::builtin().unwrap();
     let report = rtd::bench::speed::run_speed(&scene, &model, (32, 32), 1, 1, &Quiet).unwrap();
     assert_eq!(report.runs, 1);
-    for rate in [report.raw_camera_mrays_per_s, report.raw_bounce_mrays_per_s, report.mrays_per_s.median] {
+    let (camera, bounce) = (report.raw_camera_mrays_per_s.unwrap(), report.raw_bounce_mrays_per_s.unwrap());
+    for rate in [camera, bounce, report.mrays_per_s.median] {
         assert!(rate.is_finite() && rate > 0.0, "{report:?}");
     }
+    // The table shows each raw rate and the render's rays/s over it, in that order.
     let md = report.markdown();
-    assert!(md.contains("raw traversal M rays/s, camera rays") && md.contains("diffuse bounces"), "{md}");
-    assert!(md.contains("render rays/s ÷ this"), "{md}");
+    let figures = |label: &str| -> Vec<f64> {
+        let line = md.lines().find(|l| l.starts_with(&format!("| {label} |"))).unwrap_or_else(|| panic!("{md}"));
+        line.split('|').filter_map(|cell| cell.trim().parse().ok()).collect()
+    };
+    for (label, raw) in [("camera rays", camera), ("diffuse bounces from the camera hits", bounce)] {
+        let [shown_raw, shown_share] = figures(label)[..] else { panic!("{md}") };
+        assert!((shown_raw - raw).abs() <= 5e-4 * raw.max(1.0), "{label}: {shown_raw} against {raw}\n{md}");
+        let share = report.mrays_per_s.median / raw;
+        assert!((shown_share - share).abs() <= 0.006, "{label}: {shown_share} against {share}\n{md}");
+    }
     // The JSON keeps the raw rates, and a report written before they existed still reads.
     let json = serde_json::to_value(&report).unwrap();
-    assert!(json["raw_bounce_mrays_per_s"].as_f64().unwrap() > 0.0);
+    assert_eq!(json["raw_bounce_mrays_per_s"].as_f64(), Some(bounce));
     let mut old = json.clone();
     old.as_object_mut().unwrap().remove("raw_camera_mrays_per_s");
     old.as_object_mut().unwrap().remove("raw_bounce_mrays_per_s");
     let old: rtd::bench::speed::SpeedReport = serde_json::from_value(old).unwrap();
-    assert_eq!(old.raw_bounce_mrays_per_s, 0.0);
+    assert_eq!(old.raw_bounce_mrays_per_s, None);
+    assert!(old.markdown().contains("| camera rays | not measured |"), "{}", old.markdown());
 }

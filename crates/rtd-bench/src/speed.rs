@@ -11,10 +11,10 @@ use serde::{Deserialize, Serialize};
 use crate::traversal::{bounce_rays, camera_rays, traversal_mrays_per_s};
 use crate::BenchError;
 
-/// Rays in each raw traversal set.
-const PROBE_RAYS: u32 = 1 << 16;
-/// Seconds each raw traversal rate is measured for.
-const PROBE_SECONDS: f64 = 1.0;
+/// Camera rays in the raw traversal sets (the bounce set has one per camera hit).
+pub const PROBE_RAYS: u32 = 1 << 16;
+/// Seconds (at least) each raw traversal rate is measured for.
+pub const PROBE_SECONDS: f64 = 1.0;
 
 /// Median and range of repeated measurements.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -58,17 +58,21 @@ pub struct SpeedReport {
     pub denoise_s_per_mpixel: Spread,
     /// The denoiser's self-ensemble passes.
     pub denoise_passes: usize,
-    /// Raw closest-hit traversal of camera rays, millions of rays per second (one measurement).
-    #[serde(default)]
-    pub raw_camera_mrays_per_s: f64,
+    /// Raw closest-hit traversal of camera rays, millions of rays per second (one measurement;
+    /// None when not measured: a cancelled run, or no rays).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raw_camera_mrays_per_s: Option<f64>,
     /// Raw closest-hit traversal of one diffuse bounce from each camera hit (incoherent rays),
-    /// millions of rays per second (one measurement).
-    #[serde(default)]
-    pub raw_bounce_mrays_per_s: f64,
+    /// millions of rays per second (one measurement; None when not measured: a cancelled run,
+    /// or no camera ray hit anything).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raw_bounce_mrays_per_s: Option<f64>,
 }
 
 /// Measures `runs` times each: an `spp` render of `view` at `width`×`height`, its guide pass
-/// and the denoiser, each run through the pipeline with its own seed.
+/// and the denoiser, each run through the pipeline with its own seed; then, unless cancelled,
+/// raw traversal of camera rays and of one bounce from each camera hit (see
+/// [`crate::traversal`]), once each for [`PROBE_SECONDS`].
 pub fn run_speed(
     view: &SceneView,
     denoiser: &Denoiser,
@@ -93,10 +97,14 @@ pub fn run_speed(
         }
     }
     // Raw traversal after the renders, on the same pool and scene.
-    let cameras = camera_rays(&view.camera, (width, height), PROBE_RAYS);
-    let bounces = bounce_rays(&view.scene, &cameras);
-    let raw_camera = traversal_mrays_per_s(&view.scene, &cameras, PROBE_SECONDS);
-    let raw_bounce = traversal_mrays_per_s(&view.scene, &bounces, PROBE_SECONDS);
+    let (raw_camera, raw_bounce) = if progress.cancelled() {
+        (None, None)
+    } else {
+        let cameras = camera_rays(&view.camera, (width, height), PROBE_RAYS);
+        let bounces = bounce_rays(&view.scene, &cameras);
+        let rate = |rays: &[_]| Some(traversal_mrays_per_s(&view.scene, rays, PROBE_SECONDS)).filter(|r| *r > 0.0);
+        (rate(&cameras), rate(&bounces))
+    };
     Ok(SpeedReport {
         scene: view.path.display().to_string(),
         width,
@@ -114,15 +122,24 @@ pub fn run_speed(
 }
 
 impl SpeedReport {
-    /// One Markdown table row per figure.
+    /// The render's rays/s over raw traversal rays/s `raw`: how much of a render ray's time
+    /// closest-hit traversal alone would take (an estimate from above: the render's shadow rays
+    /// stop at their first hit and at the light).
+    pub fn traversal_share(&self, raw: f64) -> f64 {
+        self.mrays_per_s.median / raw
+    }
+
+    /// One Markdown table row per figure, then a table of the raw traversal rates.
     pub fn markdown(&self) -> String {
         let row = |name: &str, s: &Spread| format!("| {name} | {:.3} | {:.3}–{:.3} |\n", s.median, s.min, s.max);
-        let raw = |name: &str, raw: f64| {
-            let share = self.mrays_per_s.median / raw;
-            format!("| {name} | {raw:.3} | render rays/s ÷ this: {share:.2} |\n")
+        let raw = |name: &str, raw: Option<f64>| match raw {
+            Some(r) => format!("| {name} | {r:.3} | {:.2} |\n", self.traversal_share(r)),
+            None => format!("| {name} | not measured | – |\n"),
         };
         format!(
-            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}{}{}",
+            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}\n\
+             Raw closest-hit traversal on the same scene (one measurement each):\n\n\
+             | rays | M rays/s | render rays/s ÷ raw |\n|---|---|---|\n{}{}",
             self.scene,
             self.width,
             self.height,
@@ -139,8 +156,8 @@ impl SpeedReport {
                 ),
                 &self.denoise_s_per_mpixel
             ),
-            raw("raw traversal M rays/s, camera rays", self.raw_camera_mrays_per_s),
-            raw("raw traversal M rays/s, diffuse bounces", self.raw_bounce_mrays_per_s),
+            raw("camera rays", self.raw_camera_mrays_per_s),
+            raw("diffuse bounces from the camera hits", self.raw_bounce_mrays_per_s),
         )
     }
 }

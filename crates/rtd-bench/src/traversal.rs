@@ -37,9 +37,11 @@ pub fn camera_rays(camera: &Camera, (width, height): (u32, u32), n: u32) -> Vec<
         .collect()
 }
 
-/// One diffuse bounce from the hit of each ray in `rays` that hits something: a cosine-weighted
+/// One bounce from the hit of each ray in `rays` that hits something: a cosine-weighted
 /// direction about the geometric normal on the side the ray came from, leaving from the hit
-/// point offset off the surface (what the integrator traces after a diffuse vertex).
+/// point offset off the surface. Every hit is treated as diffuse (glass and emitters too), and
+/// about the geometric rather than the shading normal, so these are the integrator's diffuse
+/// bounce rays in kind, not a copy of the rays a render traces.
 pub fn bounce_rays(scene: &RenderScene, rays: &[ProbeRay]) -> Vec<ProbeRay> {
     rays.iter()
         .enumerate()
@@ -55,22 +57,39 @@ pub fn bounce_rays(scene: &RenderScene, rays: &[ProbeRay]) -> Vec<ProbeRay> {
 }
 
 /// Millions of closest-hit queries per second over `rays`, traced on all cores (rayon's pool),
-/// the whole set again and again until at least `seconds` have passed (once at least).
+/// the whole set again and again until at least `seconds` have passed (once at least; 0 for
+/// no rays).
 pub fn traversal_mrays_per_s(scene: &RenderScene, rays: &[ProbeRay], seconds: f64) -> f64 {
+    let timed = trace_repeatedly(scene, rays, seconds);
+    timed.rays as f64 / timed.seconds.max(1e-9) / 1e6
+}
+
+/// What [`trace_repeatedly`] traced: rays, whole passes over the set, and the seconds it took.
+#[derive(Clone, Copy, Debug)]
+struct Traced {
+    rays: u64,
+    passes: u64,
+    seconds: f64,
+}
+
+/// Traces the whole of `rays` again and again until at least `seconds` have passed (a NaN or
+/// negative `seconds`: once; no rays: not at all).
+fn trace_repeatedly(scene: &RenderScene, rays: &[ProbeRay], seconds: f64) -> Traced {
     let start = Instant::now();
-    let mut traced = 0u64;
-    loop {
+    let (mut traced, mut passes) = (0u64, 0u64);
+    while !rays.is_empty() {
         let hits = rays
             .par_iter()
             .filter(|r| scene.bvh.intersect_leaving(&scene.scene, r.origin, r.dir, f32::INFINITY, r.leaving).is_some())
             .count();
         std::hint::black_box(hits);
         traced += rays.len() as u64;
-        if start.elapsed().as_secs_f64() >= seconds || rays.is_empty() {
+        passes += 1;
+        if !(start.elapsed().as_secs_f64() < seconds) {
             break;
         }
     }
-    traced as f64 / start.elapsed().as_secs_f64().max(1e-9) / 1e6
+    Traced { rays: traced, passes, seconds: start.elapsed().as_secs_f64() }
 }
 
 #[cfg(test)]
@@ -96,7 +115,7 @@ mod tests {
                 let (p00, p10, p11, p01) = (corner(-1., -1.), corner(1., -1.), corner(1., 1.), corner(-1., 1.));
                 for p in [[p00, p10, p11], [p00, p11, p01]] {
                     let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
-                    scene.triangles.push(Triangle { p, n: [n; 3], uv: [Vec2::ZERO; 3], material: 0 });
+                    scene.push_triangle(Triangle { p, n: [n; 3], uv: [Vec2::ZERO; 3], material: 0 });
                 }
             }
         }
@@ -116,10 +135,15 @@ mod tests {
             })
             .collect();
         let bounces = bounce_rays(&scene, &from_centre);
-        // Every ray from the centre hits a wall, and every bounce goes back into the box.
+        // Every ray from the centre hits a wall, and every bounce goes back into the box, from
+        // the wall it leaves (named) and just inside it.
         assert_eq!(bounces.len(), from_centre.len());
         for b in &bounces {
-            assert!(b.origin.abs().max_element() <= 1.0 + 1e-4, "{b:?}");
+            assert!(b.origin.abs().max_element() <= 1.0, "{b:?}");
+            assert!(b.origin.abs().max_element() > 1.0 - 1e-4, "{b:?}");
+            let left = &scene.scene.triangles[b.leaving as usize];
+            let on_plane = (b.origin - left.p[0]).dot((left.p[1] - left.p[0]).cross(left.p[2] - left.p[0]).normalize());
+            assert!(on_plane.abs() < 1e-4, "{b:?} is not on the triangle it names");
             let hit = scene.bvh.intersect_leaving(&scene.scene, b.origin, b.dir, f32::INFINITY, b.leaving);
             let hit = hit.expect("a bounce inside a closed box must hit a wall");
             assert_ne!(hit.triangle, b.leaving);
@@ -139,11 +163,20 @@ mod tests {
     }
 
     #[test]
-    fn traversal_rate_counts_every_pass() {
+    fn repeated_tracing_counts_every_pass_and_stops() {
         let scene = closed_box();
         let rays = vec![ProbeRay { origin: Vec3::ZERO, dir: Vec3::X, leaving: NO_TRIANGLE }; 1000];
+        let timed = trace_repeatedly(&scene, &rays, 0.02);
+        assert!(timed.passes >= 1 && timed.seconds >= 0.02, "{timed:?}");
+        assert_eq!(timed.rays, timed.passes * 1000);
+        // A NaN or negative time traces the set once; no rays, never (and no endless loop).
+        for seconds in [f64::NAN, -1.0] {
+            let once = trace_repeatedly(&scene, &rays, seconds);
+            assert_eq!((once.passes, once.rays), (1, 1000));
+        }
+        assert_eq!(trace_repeatedly(&scene, &[], 1.0).passes, 0);
+        assert_eq!(traversal_mrays_per_s(&scene, &[], 0.01), 0.0);
         let rate = traversal_mrays_per_s(&scene, &rays, 0.01);
         assert!(rate.is_finite() && rate > 0.0, "{rate}");
-        assert_eq!(traversal_mrays_per_s(&scene, &[], 0.01), 0.0);
     }
 }
