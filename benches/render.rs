@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{criterion_group, Criterion, Throughput};
-use rtd::bench::traversal::{bounce_rays, camera_rays, traversal_mrays_per_s, ProbeRay};
+use rtd::bench::traversal::{camera_rays, ProbeRay, RawTraversal};
 use rtd::guide::{GuidePass, GuideSettings};
 use rtd::render::{PathTracer, RenderScene, RenderSettings, SceneBvh};
 use rtd::scene::{load_scene, Scene};
@@ -120,14 +120,12 @@ fn overhead_ratio(seconds: f64) {
     let s = scene("cornell-box");
     let cam = s.select_camera(None).unwrap().0;
     let prepared = RenderScene::new(s.clone());
-    let tracer = PathTracer::new(&prepared, cam, RenderSettings::new(256, 256)).unwrap();
+    let tracer = PathTracer::new(&prepared, cam.clone(), RenderSettings::new(256, 256)).unwrap();
     let mut film = tracer.film();
     let stats = tracer.render_for(&mut film, Duration::from_secs_f64(seconds), &rtd::image::Quiet).unwrap();
     let integrator = stats.rays as f64 / stats.seconds / 1e6;
-    let cameras = scene_camera_rays(&s, 1 << 16);
-    let bounces = bounce_rays(&prepared, &cameras);
-    let (camera, bounce) =
-        (traversal_mrays_per_s(&prepared, &cameras, seconds), traversal_mrays_per_s(&prepared, &bounces, seconds));
+    let raw = RawTraversal::measure(&prepared, &cam, (256, 256), 1 << 16, seconds);
+    let (camera, bounce) = (raw.camera.unwrap(), raw.bounce.unwrap());
     println!(
         "cornell-box 256x256: integrator {integrator:.2} M rays/s ({:.3} M paths/s); raw traversal {camera:.2} M rays/s \
          on camera rays (ratio {:.2}), {bounce:.2} M rays/s on diffuse bounces (ratio {:.2})",

@@ -8,7 +8,7 @@ use rtd_pipeline::{Budget, Pipeline, SceneView};
 use rtd_render::RenderSettings;
 use serde::{Deserialize, Serialize};
 
-use crate::traversal::{bounce_rays, camera_rays, traversal_mrays_per_s};
+use crate::traversal::RawTraversal;
 use crate::BenchError;
 
 /// Camera rays in the raw traversal sets (the bounce set has one per camera hit).
@@ -97,13 +97,10 @@ pub fn run_speed(
         }
     }
     // Raw traversal after the renders, on the same pool and scene.
-    let (raw_camera, raw_bounce) = if progress.cancelled() {
-        (None, None)
+    let raw = if progress.cancelled() {
+        RawTraversal { camera: None, bounce: None }
     } else {
-        let cameras = camera_rays(&view.camera, (width, height), PROBE_RAYS);
-        let bounces = bounce_rays(&view.scene, &cameras);
-        let rate = |rays: &[_]| Some(traversal_mrays_per_s(&view.scene, rays, PROBE_SECONDS)).filter(|r| *r > 0.0);
-        (rate(&cameras), rate(&bounces))
+        RawTraversal::measure(&view.scene, &view.camera, (width, height), PROBE_RAYS, PROBE_SECONDS)
     };
     Ok(SpeedReport {
         scene: view.path.display().to_string(),
@@ -116,8 +113,8 @@ pub fn run_speed(
         guide_s_per_mpixel: Spread::of(guide_t),
         denoise_s_per_mpixel: Spread::of(den_t),
         denoise_passes: denoiser.ensemble_passes(),
-        raw_camera_mrays_per_s: raw_camera,
-        raw_bounce_mrays_per_s: raw_bounce,
+        raw_camera_mrays_per_s: raw.camera,
+        raw_bounce_mrays_per_s: raw.bounce,
     })
 }
 

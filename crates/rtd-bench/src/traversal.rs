@@ -1,13 +1,12 @@
 //! Raw BVH traversal throughput, the yardstick for the integrator's rays/s: closest-hit queries
 //! alone, on all cores, for camera rays (coherent) and for one cosine-distributed bounce from
 //! each camera hit (incoherent, as the integrator's secondary rays are). The integrator's rays/s
-//! over these is the share of its time that traversal would take if shading, sampling and light
-//! selection cost nothing.
+//! over these estimates, from above, how much of a render ray's time traversal alone takes (the
+//! render's shadow rays stop at their first hit and at the light).
 
 use std::time::Instant;
 
-use glam::Vec2;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use rtd_render::sampling::{sample_cosine_hemisphere, Frame};
 use rtd_render::surface::Surface;
@@ -24,6 +23,27 @@ pub struct ProbeRay {
     pub dir: Vec3,
     /// The triangle the ray leaves, skipped by the query.
     pub leaving: u32,
+}
+
+/// Raw closest-hit traversal rates of one view, millions of rays per second (one measurement
+/// each; None where there was nothing to trace).
+#[derive(Clone, Copy, Debug)]
+pub struct RawTraversal {
+    /// Camera rays through the film.
+    pub camera: Option<f64>,
+    /// One diffuse bounce from each camera hit (incoherent rays).
+    pub bounce: Option<f64>,
+}
+
+impl RawTraversal {
+    /// Traces `n` camera rays of a `width`×`height` view of `scene` through `camera`, and one
+    /// bounce from each of their hits ([`bounce_rays`]), each set for at least `seconds`.
+    pub fn measure(scene: &RenderScene, camera: &Camera, size: (u32, u32), n: u32, seconds: f64) -> Self {
+        let cameras = camera_rays(camera, size, n);
+        let bounces = bounce_rays(scene, &cameras);
+        let rate = |rays: &[ProbeRay]| (!rays.is_empty()).then(|| traversal_mrays_per_s(scene, rays, seconds));
+        RawTraversal { camera: rate(&cameras), bounce: rate(&bounces) }
+    }
 }
 
 /// Camera rays through `n` points of a `width`×`height` film, placed by the sampler of seed 1.
