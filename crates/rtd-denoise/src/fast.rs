@@ -456,7 +456,6 @@ pub struct FastNet {
     bottleneck: Vec<FastBlock>,
     decoders: Vec<FastDecoder>,
     output: Conv,
-    blend: Option<Conv>,
 }
 
 impl FastNet {
@@ -473,7 +472,6 @@ impl FastNet {
             bottleneck: net.bottleneck.iter().map(|b| FastBlock::from(b, kernel)).collect(),
             decoders: net.decoders.iter().map(|d| FastDecoder::from(d, kernel)).collect(),
             output: Conv::from(&net.output).for_kernel(kernel),
-            blend: net.blend.as_ref().map(|b| Conv::from(b).for_kernel(kernel)),
         }
     }
 
@@ -501,50 +499,10 @@ impl FastNet {
             scratch.recycle(std::mem::replace(&mut y, next));
             scratch.recycle(skip);
         }
-        let mut out = self.output.run(&y, false, scratch);
-        if let Some(head) = &self.blend {
-            let logits = head.run(&y, false, scratch);
-            blend(&mut out, x, &logits);
-            scratch.recycle(logits);
-        }
+        let out = self.output.run(&y, false, scratch);
         scratch.recycle(y);
         out
     }
-}
-
-/// The kernel-predicting blend of [`crate::model`], in place on the direct prediction `out`:
-/// `head` holds K² kernel logits and a blend logit per pixel, `x` the encoded input, whose
-/// first three planes (the noisy colour) the kernels filter, edge-replicated outside the map.
-fn blend(out: &mut Map, x: &Map, head: &Map) {
-    let (w, h, n) = (x.w, x.h, x.w * x.h);
-    let taps = head.c - 1;
-    let k = (taps as f64).sqrt().round() as usize;
-    let r = (k / 2) as isize;
-    out.data[..3 * n].par_chunks_mut(w).enumerate().for_each_init(
-        || vec![0.0f32; taps],
-        |weights, (row, dst)| {
-            let (c, y) = (row / h, row % h);
-            for (px, value) in dst.iter_mut().enumerate() {
-                let p = y * w + px;
-                // Softmax of the kernel logits, shifted by their maximum.
-                let top = (0..taps).map(|t| head.data[t * n + p]).fold(f32::NEG_INFINITY, f32::max);
-                let mut sum = 0.0;
-                for (t, wt) in weights.iter_mut().enumerate() {
-                    *wt = (head.data[t * n + p] - top).exp();
-                    sum += *wt;
-                }
-                // Σ_t weight_t · colour(p + t), taps clamped to the map.
-                let mut filtered = 0.0;
-                for (t, wt) in weights.iter().enumerate() {
-                    let sy = (y as isize + (t / k) as isize - r).clamp(0, h as isize - 1) as usize;
-                    let sx = (px as isize + (t % k) as isize - r).clamp(0, w as isize - 1) as usize;
-                    filtered += wt * x.data[(c * h + sy) * w + sx];
-                }
-                let alpha = 1.0 / (1.0 + (-head.data[taps * n + p]).exp());
-                *value = alpha * *value + (1.0 - alpha) * (filtered / sum);
-            }
-        },
-    );
 }
 
 #[cfg(test)]
@@ -559,27 +517,14 @@ mod tests {
         device.seed(3);
         let configs = [
             DenoiserConfig::new(vec![8, 12, 16]).with_bottleneck_blocks(2),
-            DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(1).with_kernel(Some(5)),
             DenoiserConfig::new(vec![8]).with_bottleneck_blocks(1),
             DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(0),
         ];
         // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row;
         // 24×100 runs the full-resolution blocks in bands, the last one short.
-        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (3, 20, 12), (0, 52, 44), (2, 24, 100), (1, 52, 44)] {
+        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100)] {
             let config = &configs[i];
             let net = config.init(&device);
-            // A fresh blend head is a box filter; random head weights test the kernels' layout.
-            let net = match net.blend.clone() {
-                Some(mut head) => {
-                    let dims = head.weight.val().dims();
-                    let random = Tensor::<4>::random(dims, burn::tensor::Distribution::Uniform(-0.5, 0.5), &device);
-                    head.weight = burn::module::Param::from_tensor(random);
-                    let bias = Tensor::<1>::random([dims[0]], burn::tensor::Distribution::Uniform(-2.0, 2.0), &device);
-                    head.bias = Some(burn::module::Param::from_tensor(bias));
-                    crate::model::DenoiserNet { blend: Some(head), ..net }
-                }
-                None => net,
-            };
             let c = config.input_channels;
             let chw: Vec<f32> = (0..c * w * h).map(|i| (i * 7919 % 1000) as f32 / 500.0 - 1.0).collect();
             let reference = net.forward(Tensor::<4>::from_data(TensorData::new(chw.clone(), [1, c, h, w]), &device));

@@ -6,8 +6,7 @@ use burn::module::{Module, ModuleMapper, Param, ParamId};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
 use burn::nn::PaddingConfig2d;
-use burn::tensor::activation::{relu, sigmoid, softmax};
-use burn::tensor::ops::PadMode;
+use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
@@ -56,10 +55,6 @@ pub struct DenoiserConfig {
     /// of the training loss). Absent (older model files) means
     /// [`crate::encode::DEFAULT_KEY`]; read it through [`DenoiserConfig::exposure_key`].
     pub exposure_key: Option<f32>,
-    /// Side K (odd) of the kernel-predicting blend: the network also predicts, per pixel, a
-    /// normalised K×K kernel, applies it to the noisy colour, and blends that with its direct
-    /// prediction by a predicted weight. Absent means direct prediction only.
-    pub kernel: Option<usize>,
 }
 
 impl DenoiserConfig {
@@ -133,13 +128,9 @@ impl DenoiserConfig {
             bottleneck,
             decoders,
             output,
-            blend: None,
             downsample: MaxPool2dConfig::new([2, 2]).init(),
         };
-        match self.kernel {
-            Some(k) => net.with_kernel_head(k),
-            None => net.map(&mut NumberedParams(0)),
-        }
+        net.map(&mut NumberedParams(0))
     }
 
     /// An upper bound on how far (in full-resolution pixels) an input pixel can influence an
@@ -158,8 +149,7 @@ impl DenoiserConfig {
         for l in (0..levels - 1).rev() {
             r += (1 << l) * 2; // nearest upsample + 1×1 fuse + 3×3 conv at scale 2^l
         }
-        // The blend's kernel reaches K/2 pixels further into the noisy colour.
-        r + self.kernel.map_or(0, |k| k / 2)
+        r
     }
 
     /// Multiply-accumulates per full-resolution pixel of one forward pass.
@@ -177,9 +167,7 @@ impl DenoiserConfig {
         for l in 0..levels - 1 {
             m += ((c[l + 1] + c[l]) * c[l] + 9 * c[l] * c[l]) as f64 * scale(l);
         }
-        // Output conv; the blend head's 1×1 conv to K² + 1 channels and its K² taps per channel.
-        let blend = self.kernel.map_or(0, |k| c[0] * (k * k + 1) + 3 * k * k);
-        m + (c[0] * 3 + blend) as f64
+        m + (c[0] * 3) as f64
     }
 }
 
@@ -278,8 +266,6 @@ pub struct DenoiserNet {
     pub(crate) bottleneck: Vec<InceptionBlock>,
     pub(crate) decoders: Vec<Decoder>,
     pub(crate) output: Conv2d,
-    /// The kernel-predicting blend's head: a 1×1 conv to K² kernel logits and one blend logit.
-    pub(crate) blend: Option<Conv2d>,
     pub(crate) downsample: MaxPool2d,
 }
 
@@ -313,28 +299,9 @@ impl DenoiserNet {
         self.map(&mut NumberedParams(0))
     }
 
-    /// The same network with a kernel-predicting blend head of side `k` (odd) in place of any
-    /// it had. The head starts with zero weights, so every kernel is a K×K box, and a blend
-    /// bias of [`BLEND_BIAS`], so the output starts as sigmoid(BLEND_BIAS) ≈ 95% the direct
-    /// prediction: a trained direct model seeds a blending one without losing what it knows.
-    pub fn with_kernel_head(mut self, k: usize) -> Self {
-        assert!(k % 2 == 1, "the blend kernel's side must be odd, not {k}");
-        let weight = self.output.weight.val(); // [3, c0, 1, 1]
-        let (c0, device) = (weight.dims()[1], weight.device());
-        let mut head = conv(c0, k * k + 1, 1, 1, &device);
-        let mut bias = vec![0.0f32; k * k + 1];
-        bias[k * k] = BLEND_BIAS;
-        // `detach` makes the new tensors leaves, which autodiff needs to track them.
-        head.weight = Param::from_tensor(Tensor::<4>::zeros([k * k + 1, c0, 1, 1], &device).detach());
-        head.bias = Some(Param::from_tensor(Tensor::<1>::from_floats(bias.as_slice(), &device).detach()));
-        self.blend = Some(head);
-        self.map(&mut NumberedParams(0))
-    }
-
     /// `x`: [N, C, H, W] encoded inputs (C the config's input planes), H and W multiples of the config's alignment
     /// → [N, 3, H, W] encoded colour.
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let colour = self.blend.is_some().then(|| x.clone().narrow(1, 0, 3)); // [N, 3, H, W]
         let mut skips = Vec::with_capacity(self.encoders.len());
         let mut y = relu(self.stem.forward(x)); // [N, c0, H, W]
         for (l, enc) in self.encoders.iter().enumerate() {
@@ -354,36 +321,8 @@ impl DenoiserNet {
             let fused = relu(dec.fuse.forward(Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
             y = relu(dec.refine.forward(fused)); // [N, c(l), H/2^l, W/2^l]
         }
-        let direct = self.output.forward(y.clone()); // [N, 3, H, W]
-        match (&self.blend, colour) {
-            (Some(head), Some(colour)) => blend(direct, colour, head.forward(y)),
-            _ => direct,
-        }
+        self.output.forward(y) // [N, 3, H, W]
     }
-}
-
-/// The blend logit a new kernel head starts with: sigmoid(3) = 0.953 of the direct prediction.
-pub const BLEND_BIAS: f32 = 3.0;
-
-/// The kernel-predicting blend: with `head` = [N, K² + 1, H, W] (K² kernel logits, then the
-/// blend logit), out = α · direct + (1 − α) · Σ_t softmax(logits)_t · colour(p + t), α the
-/// sigmoid of the blend logit, t over the K×K taps centred on p, colour edge-replicated
-/// outside the image.
-fn blend(direct: Tensor<4>, colour: Tensor<4>, head: Tensor<4>) -> Tensor<4> {
-    let [n, c, h, w] = colour.dims();
-    let taps = head.dims()[1] - 1;
-    let k = (taps as f64).sqrt().round() as usize;
-    let r = k / 2;
-    let weights = softmax(head.clone().narrow(1, 0, taps), 1); // [N, K², H, W]
-    let alpha = sigmoid(head.narrow(1, taps, 1)).expand([n, c, h, w]); // [N, 3, H, W]
-    let padded = colour.pad([(r, r), (r, r)], PadMode::Edge); // [N, 3, H + 2r, W + 2r]
-    let mut filtered = Tensor::<4>::zeros([n, c, h, w], &direct.device());
-    for t in 0..taps {
-        let (dy, dx) = (t / k, t % k);
-        let shifted = padded.clone().slice([0..n, 0..c, dy..dy + h, dx..dx + w]); // colour(p + t)
-        filtered = filtered + shifted * weights.clone().narrow(1, t, 1).expand([n, c, h, w]);
-    }
-    alpha.clone() * direct + (alpha.neg() + 1.0) * filtered
 }
 
 #[cfg(test)]
@@ -434,30 +373,6 @@ mod tests {
         // Training widens on the autodiff device, whose parameters must stay trackable leaves.
         let trained = narrow.init(&Device::flex().autodiff()).widen_input(c);
         assert!(trained.stem.weight.val().is_require_grad());
-    }
-
-    #[test]
-    fn a_new_kernel_head_blends_a_box_filter_of_the_noisy_colour_into_the_old_output() {
-        let device = Device::flex();
-        device.seed(5);
-        let net = DenoiserConfig::new(vec![8, 12]).init(&device);
-        let (h, w, c) = (8, 12, INPUT_CHANNELS);
-        // Every colour plane constant, so a normalised kernel of any shape returns the constant.
-        let values: Vec<f32> = (0..c * h * w).map(|i| if i < 3 * h * w { 0.7 } else { (i % 13) as f32 / 6.0 }).collect();
-        let x = || Tensor::<4>::from_data(TensorData::new(values.clone(), [1, c, h, w]), &device);
-        let old: Vec<f32> = net.forward(x()).into_data().try_to_vec().unwrap();
-        let blended = net.with_kernel_head(5);
-        assert_eq!(blended.blend.as_ref().unwrap().weight.val().dims(), [26, 8, 1, 1]);
-        let new: Vec<f32> = blended.forward(x()).into_data().try_to_vec().unwrap();
-        let alpha = 1.0 / (1.0 + (-BLEND_BIAS).exp());
-        for (o, n) in old.iter().zip(&new) {
-            assert!((alpha * o + (1.0 - alpha) * 0.7 - n).abs() < 1e-5, "{o} → {n}");
-        }
-        // The config's figures grow by the head: 2 px of reach, 8 × 26 + 3 × 25 MACs a pixel.
-        let plain = DenoiserConfig::new(vec![8, 12]);
-        let kp = plain.clone().with_kernel(Some(5));
-        assert_eq!(kp.receptive_radius(), plain.receptive_radius() + 2);
-        assert_eq!(kp.macs_per_pixel(), plain.macs_per_pixel() + 283.0);
     }
 
     #[test]

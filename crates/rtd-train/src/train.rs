@@ -261,24 +261,13 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     if config.input_channels > options.config.input_channels {
         return Err(TrainError::msg(&cfg_path, "reads more input planes than the network being trained"));
     }
-    // A model without a kernel-predicting blend seeds one with it (the head starts as a box
-    // filter given 5% of the output, see `DenoiserNet::with_kernel_head`).
-    let add_head = match (config.kernel, options.config.kernel) {
-        (None, Some(k)) => Some(k),
-        _ => None,
-    };
     let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
-    let comparable = config.clone().with_input_channels(options.config.input_channels);
-    if comparable.with_kernel(add_head.or(config.kernel)) != options.config {
+    if config.clone().with_input_channels(options.config.input_channels) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = load_fenced(path, || ModuleRecord::load(path))?;
     let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    let net = if narrower { net.widen_input(options.config.input_channels) } else { net };
-    Ok(match add_head {
-        Some(k) => net.with_kernel_head(k),
-        None => net,
-    })
+    Ok(if narrower { net.widen_input(options.config.input_channels) } else { net })
 }
 
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing

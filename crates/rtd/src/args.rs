@@ -116,10 +116,6 @@ pub struct TrainModelArgs {
     /// of the transfer's range and of the loss
     #[arg(long, value_parser = parse_key)]
     pub exposure_key: Option<f32>,
-    /// Add a kernel-predicting blend of this odd side K (saved in the model's config; with
-    /// --init, a model without one is given a head that starts as a K×K box at 5% weight)
-    #[arg(long, value_parser = odd_kernel)]
-    pub kernel: Option<usize>,
 }
 
 /// `rtd train`'s loss and the inputs its crops carry.
@@ -663,16 +659,6 @@ fn positive_rate(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("{v} is not in (0, 1]"))
-    }
-}
-
-/// A blend kernel's side: odd, 3 to 9.
-fn odd_kernel(s: &str) -> Result<usize, String> {
-    let v: usize = s.parse().map_err(|e| format!("{e}"))?;
-    if v % 2 == 1 && (3..=9).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{v} is not an odd side from 3 to 9"))
     }
 }
 

@@ -105,10 +105,6 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         Some(k) => config.with_exposure_key(Some(k)),
         None => config,
     };
-    let config = match model.kernel {
-        Some(k) => config.with_kernel(Some(k)),
-        None => config,
-    };
     Ok(TrainOptions::default()
         .config(config)
         .learning_rate(schedule.lr)
