@@ -180,8 +180,8 @@ fn nan_and_inf_inputs_give_finite_output() {
     assert!(out.is_finite());
 }
 
-/// A network that reads the variance planes, with random weights (until a shipped model reads
-/// them, this is what exercises them), over a rendered box and the film's variance.
+/// A network that reads the variance planes, with random weights (the shipped model's are
+/// trained to depend on them only weakly), over a rendered box and the film's variance.
 #[test]
 fn variance_planes_are_read_and_hold_to_burn_tiling_and_nan() {
     use rtd::denoise::DenoiserConfig;

@@ -245,23 +245,36 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
 
 #[test]
 fn a_model_without_the_variance_planes_seeds_a_run_that_reads_them() {
-    // The shipped model reads the 16 legacy planes; one step at a negligible rate from it
-    // trains the full-width network, which must compute what the shipped model computes.
+    // A model made before the variance planes reads the 16 legacy planes (one is trained here:
+    // the shipped model reads all 20). One step at a negligible rate from it trains the
+    // full-width network, which must compute what the legacy model computes.
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     tiny_dataset(&data);
-    let shipped_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rtd-denoiser.bpk");
-    let shipped = rtd::denoise::Denoiser::load(&shipped_path).unwrap();
-    assert!(!shipped.reads_variance(), "the test needs a model without the variance planes");
-    let config = shipped.config().clone().with_input_channels(rtd::denoise::INPUT_CHANNELS);
-    let options = TrainOptions::default().config(config).batch(1, 16).steps(1).epoch_steps(1).learning_rate(1e-12);
-    train(&data, &dir.path().join("w"), &options.init(Some(shipped_path)), false, &Quiet).unwrap();
+    let legacy_config = tiny_config().with_input_channels(rtd::denoise::planes::LEGACY_INPUT_CHANNELS);
+    let options = TrainOptions::default().batch(1, 16).steps(1).epoch_steps(1);
+    train(&data, &dir.path().join("legacy"), &options.clone().config(legacy_config.clone()), false, &Quiet).unwrap();
+    let legacy_path = dir.path().join("legacy/model.bpk");
+    let legacy = rtd::denoise::Denoiser::load(&legacy_path).unwrap();
+    assert!(!legacy.reads_variance());
+    let config = legacy_config.with_input_channels(rtd::denoise::INPUT_CHANNELS);
+    let widen = options.config(config).learning_rate(1e-12).init(Some(legacy_path));
+    train(&data, &dir.path().join("w"), &widen, false, &Quiet).unwrap();
     let widened = rtd::denoise::Denoiser::load(&dir.path().join("w/model.bpk")).unwrap();
     assert!(widened.reads_variance());
     let planes: Vec<f32> = (0..rtd::denoise::INPUT_CHANNELS * 64).map(|i| (i % 7) as f32 * 0.1).collect();
-    let (a, b) = (shipped.run_planes(&planes, 8, 8), widened.run_planes(&planes, 8, 8));
+    let (a, b) = (legacy.run_planes(&planes, 8, 8), widened.run_planes(&planes, 8, 8));
     let diff = a.iter().zip(&b).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max);
     assert!(diff < 1e-4, "the widened network computes something else: {diff}");
+    // And it is not trivially so: the variance planes reach the widened network's output once
+    // its stem weights for them are not zero (here: after training at a real rate).
+    let trained = TrainOptions::default().batch(1, 16).steps(3).epoch_steps(3).learning_rate(1e-2);
+    let trained = trained.config(widen.config.clone()).init(Some(dir.path().join("w/model.bpk")));
+    train(&data, &dir.path().join("t"), &trained, false, &Quiet).unwrap();
+    let t = rtd::denoise::Denoiser::load(&dir.path().join("t/model.bpk")).unwrap();
+    let mut other = planes.clone();
+    other[16 * 64..].iter_mut().for_each(|v| *v += 0.5);
+    assert_ne!(t.run_planes(&planes, 8, 8), t.run_planes(&other, 8, 8));
 }
 
 /// A dataset directory holding only a manifest that lists a training and a validation view of

@@ -35,3 +35,14 @@ pub fn noisy_exr(dir: &Path, w: u32, h: u32) -> PathBuf {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     out
 }
+
+/// [`noisy_exr`] without its `variance.*` channels: what other software's files hold, so that
+/// denoising it from rtd's layer names and from another program's gives the same input.
+pub fn noisy_exr_without_variance(dir: &Path, w: u32, h: u32) -> PathBuf {
+    let path = noisy_exr(dir, w, h);
+    let mut layers = rtd::image::read_exr(&path).unwrap();
+    assert!(layers.channels.iter().any(|(n, _)| n.starts_with("variance.")), "rtd's render has a variance");
+    layers.channels.retain(|(n, _)| !n.starts_with("variance."));
+    rtd::image::write_exr(&path, &layers).unwrap();
+    path
+}

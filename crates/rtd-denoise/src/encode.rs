@@ -160,7 +160,27 @@ pub fn encode_color(x: f32, exposure: f32) -> f32 {
 /// ln(1 + x · exposure) of an already sanitised x.
 #[inline]
 fn transfer(x: f32, exposure: f32) -> f32 {
-    (x * exposure).ln_1p()
+    ln_1p(x * exposure)
+}
+
+/// ln(1 + x) for x ≥ 0, within 2e-7 of `f32::ln_1p` (absolute where the result is below 1,
+/// relative above; tested from 1e-12 to 1e30), in arithmetic the compiler vectorises: the
+/// input planes take one per pixel and channel, and the library call was half of encoding's
+/// time.
+#[inline]
+fn ln_1p(x: f32) -> f32 {
+    // u = 1 + x = 2^e · m with m in [√½, √2): ln u = e · ln 2 + ln m.
+    let u = 1.0 + x;
+    let bits = u.to_bits();
+    // Exponent relative to √½'s, so the mantissa lands in [√½, √2).
+    let shifted = bits.wrapping_sub(0x3f35_04f3);
+    let e = (shifted as i32 >> 23) as f32;
+    let m = f32::from_bits((shifted & 0x007f_ffff).wrapping_add(0x3f35_04f3));
+    // ln m = 2 atanh(s), s = (m − 1) / (m + 1), |s| ≤ 0.172: the odd series to s⁹.
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = 2.0 + s2 * (2.0 / 3.0 + s2 * (2.0 / 5.0 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0))));
+    e * std::f32::consts::LN_2 + s * series
 }
 
 /// The inverse transfer: x = (e^y − 1) / exposure, for y ≥ 0.
@@ -186,14 +206,9 @@ pub fn demod_albedo<'a>(input: &DenoiseInput<'a>, demodulate: bool) -> Option<&'
 /// Writes channel `k` of `color`, divided by `albedo` + [`DEMOD_EPS`] if given, encoded, into
 /// `plane` (one value per pixel).
 pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&HdrImage>, k: usize, exposure: f32) {
-    plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
-        let i0 = c * PIXEL_CHUNK;
-        for (i, (v, p)) in chunk.iter_mut().zip(&color.pixels[i0..]).enumerate() {
-            // The transfer of colour ÷ demodulation factor (at least DEMOD_EPS, so finite; not
-            // clamped again, so demodulated HDR keeps its range).
-            *v = transfer(clean(p[k], 0.0, MAX_INPUT) / demod_factor(albedo, i0 + i, k), exposure);
-        }
-    });
+    // The transfer of colour ÷ demodulation factor (at least DEMOD_EPS, so finite; not clamped
+    // again, so demodulated HDR keeps its range).
+    encode_plane(plane, color, albedo, k, exposure, |x| clean(x, 0.0, MAX_INPUT));
 }
 
 /// Writes channel `k` of the colour's standard deviation, √variance, divided by `albedo` +
@@ -205,11 +220,32 @@ pub fn encode_deviation_plane(
     k: usize,
     exposure: f32,
 ) {
+    encode_plane(plane, variance, albedo, k, exposure, |x| clean(x, 0.0, MAX_INPUT * MAX_INPUT).sqrt());
+}
+
+/// plane[i] = transfer(value(channel k of image i) ÷ demodulation factor i), threaded over
+/// pixel chunks; the channel and the albedo's presence are chosen outside the pixel loop, so
+/// the loop has no branches and vectorises.
+fn encode_plane(
+    plane: &mut [f32],
+    image: &HdrImage,
+    albedo: Option<&HdrImage>,
+    k: usize,
+    exposure: f32,
+    value: impl Fn(f32) -> f32 + Sync,
+) {
+    let channel = |p: &Vec3| p.to_array()[k.min(2)];
     plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
         let i0 = c * PIXEL_CHUNK;
-        for (i, (v, p)) in chunk.iter_mut().zip(&variance.pixels[i0..]).enumerate() {
-            let deviation = clean(p[k], 0.0, MAX_INPUT * MAX_INPUT).sqrt();
-            *v = transfer(deviation / demod_factor(albedo, i0 + i, k), exposure);
+        let src = &image.pixels[i0..i0 + chunk.len()];
+        match albedo {
+            Some(a) => {
+                let alb = &a.pixels[i0..i0 + chunk.len()];
+                for ((v, p), q) in chunk.iter_mut().zip(src).zip(alb) {
+                    *v = transfer(value(channel(p)) / (clean(channel(q), 0.0, 1.0) + DEMOD_EPS), exposure);
+                }
+            }
+            None => chunk.iter_mut().zip(src).for_each(|(v, p)| *v = transfer(value(channel(p)), exposure)),
         }
     });
 }
@@ -263,6 +299,21 @@ pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_vectorised_ln_1p_agrees_with_the_library() {
+        // Every decade from 1e-12 to 1e30, 4096 points each, plus zero.
+        let mut worst = (0.0f32, 0.0f32);
+        for i in 0..42 * 4096 {
+            let x = 10f32.powf(-12.0 + i as f32 / 4096.0);
+            let err = (ln_1p(x) - x.ln_1p()).abs();
+            if err > worst.0 {
+                worst = (err, x);
+            }
+        }
+        assert!(worst.0 < 2e-7 * (1.0 + worst.1.ln_1p()).max(1.0), "error {} at x = {}", worst.0, worst.1);
+        assert_eq!(ln_1p(0.0), 0.0);
+    }
 
     #[test]
     fn transfer_round_trips_and_sanitises() {

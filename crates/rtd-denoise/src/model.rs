@@ -381,7 +381,10 @@ mod tests {
         let shipped = DenoiserConfig::from_json(include_str!("../../../models/rtd-denoiser.json")).unwrap();
         assert_eq!((&shipped.channels, shipped.bottleneck_blocks, shipped.prong), (&vec![24, 48, 64], 2, 5));
         assert!(shipped.demodulates() && (shipped.exposure_key() - 2.88).abs() < 1e-6);
-        assert_eq!(shipped.encoding(), Encoding { demodulate: true, key: shipped.exposure_key(), channels: 16 });
+        assert_eq!(
+            shipped.encoding(),
+            Encoding { demodulate: true, key: shipped.exposure_key(), channels: INPUT_CHANNELS }
+        );
         // A small config's JSON with one field set as older rtd versions wrote it.
         let with = |field: &str, v: serde_json::Value| {
             let mut json = serde_json::to_value(DenoiserConfig::new(vec![8, 8])).unwrap();
