@@ -129,7 +129,8 @@ fn denoise_bad_inputs_fail_cleanly_without_output() {
     assert_fails(&rtd(&["denoise", "--color", s(&a), "--guide", s(&a), "--model", s(&m), "-o", s(&out)]), "corrupt");
     let wrong = d.join("wrong.bpk");
     std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("models/rtd-denoiser.bpk"), &wrong).unwrap();
-    let cfg = include_str!("../models/rtd-denoiser.json").replace("\"input_channels\": 16", "\"input_channels\": 9");
+    let cfg = include_str!("../models/rtd-denoiser.json").replace("\"input_channels\": 20", "\"input_channels\": 9");
+    assert!(cfg.contains("\"input_channels\": 9"), "the shipped config names its input width");
     std::fs::write(d.join("wrong.json"), cfg).unwrap();
     assert_fails(
         &rtd(&["denoise", "--color", s(&a), "--guide", s(&a), "--model", s(&wrong), "-o", s(&out)]),
@@ -189,7 +190,10 @@ fn denoise_ensemble_is_the_librarys_and_is_reported() {
     let one = run("1", &dir.path().join("o1.exr"), &dir.path().join("r1.json"));
     let img = rtd::image::read_exr(&noisy).unwrap();
     let (color, guide) = (img.image(rtd::image::Layer::Beauty).unwrap(), img.image(rtd::image::Layer::Guide).unwrap());
-    let input = rtd::denoise::DenoiseInput::new(&color, &guide);
+    // rtd's own file carries the colour's variance, which the CLI gives the shipped model.
+    let variance = img.image(rtd::image::Layer::Variance);
+    assert!(variance.is_some());
+    let input = rtd::denoise::DenoiseInput::new(&color, &guide).variance(variance.as_ref());
     let library = rtd::denoise::Denoiser::builtin().unwrap().passes(4).denoise(&input).unwrap();
     assert_eq!(four.pixels, library.pixels);
     assert_ne!(four.pixels, one.pixels);

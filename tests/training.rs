@@ -268,7 +268,7 @@ fn a_model_without_the_variance_planes_seeds_a_run_that_reads_them() {
     assert!(diff < 1e-4, "the widened network computes something else: {diff}");
     // And it is not trivially so: the variance planes reach the widened network's output once
     // its stem weights for them are not zero (here: after training at a real rate).
-    let trained = TrainOptions::default().batch(1, 16).steps(3).epoch_steps(3).learning_rate(1e-2);
+    let trained = TrainOptions::default().batch(1, 16).steps(3).epoch_steps(3).learning_rate(1e-2).variance_drop(0.0);
     let trained = trained.config(widen.config.clone()).init(Some(dir.path().join("w/model.bpk")));
     train(&data, &dir.path().join("t"), &trained, false, &Quiet).unwrap();
     let t = rtd::denoise::Denoiser::load(&dir.path().join("t/model.bpk")).unwrap();

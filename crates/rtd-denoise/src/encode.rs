@@ -234,7 +234,7 @@ fn encode_plane(
     exposure: f32,
     value: impl Fn(f32) -> f32 + Sync,
 ) {
-    let channel = |p: &Vec3| p.to_array()[k.min(2)];
+    let channel = |p: &Vec3| p.to_array()[k];
     plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
         let i0 = c * PIXEL_CHUNK;
         let src = &image.pixels[i0..i0 + chunk.len()];
@@ -302,16 +302,13 @@ mod tests {
 
     #[test]
     fn the_vectorised_ln_1p_agrees_with_the_library() {
-        // Every decade from 1e-12 to 1e30, 4096 points each, plus zero.
-        let mut worst = (0.0f32, 0.0f32);
+        // Every decade from 1e-12 to 1e30, 4096 points each: within 2e-7 absolute where the
+        // result is below 1, relative above.
         for i in 0..42 * 4096 {
             let x = 10f32.powf(-12.0 + i as f32 / 4096.0);
             let err = (ln_1p(x) - x.ln_1p()).abs();
-            if err > worst.0 {
-                worst = (err, x);
-            }
+            assert!(err <= 2e-7 * x.ln_1p().max(1.0), "error {err} at x = {x}");
         }
-        assert!(worst.0 < 2e-7 * (1.0 + worst.1.ln_1p()).max(1.0), "error {} at x = {}", worst.0, worst.1);
         assert_eq!(ln_1p(0.0), 0.0);
     }
 
