@@ -195,7 +195,14 @@ pub fn decode_color(y: f32, exposure: f32) -> f32 {
 /// after decoding): albedo + [`DEMOD_EPS`], or 1 where the model does not demodulate or no
 /// albedo is given.
 pub fn demod_factor(albedo: Option<&HdrImage>, i: usize, k: usize) -> f32 {
-    albedo.map_or(1.0, |a| clean(a.pixels[i][k], 0.0, 1.0) + DEMOD_EPS)
+    albedo.map_or(1.0, |a| albedo_factor(a.pixels[i][k]))
+}
+
+/// The demodulation factor of one albedo value: the value clamped to [0, 1], plus
+/// [`DEMOD_EPS`].
+#[inline]
+fn albedo_factor(albedo: f32) -> f32 {
+    clean(albedo, 0.0, 1.0) + DEMOD_EPS
 }
 
 /// The albedo colour is demodulated by: the input's albedo when `demodulate` is set.
@@ -242,7 +249,7 @@ fn encode_plane(
             Some(a) => {
                 let alb = &a.pixels[i0..i0 + chunk.len()];
                 for ((v, p), q) in chunk.iter_mut().zip(src).zip(alb) {
-                    *v = transfer(value(channel(p)) / (clean(channel(q), 0.0, 1.0) + DEMOD_EPS), exposure);
+                    *v = transfer(value(channel(p)) / albedo_factor(channel(q)), exposure);
                 }
             }
             None => chunk.iter_mut().zip(src).for_each(|(v, p)| *v = transfer(value(channel(p)), exposure)),
