@@ -78,7 +78,15 @@ fn speed_report_holds_the_render_against_raw_traversal() {
     let mut old = json.clone();
     old.as_object_mut().unwrap().remove("raw_camera_mrays_per_s");
     old.as_object_mut().unwrap().remove("raw_bounce_mrays_per_s");
+    old.as_object_mut().unwrap().remove("denoise_warm_s_per_mpixel");
     let old: rtd::bench::speed::SpeedReport = serde_json::from_value(old).unwrap();
     assert_eq!(old.raw_bounce_mrays_per_s, None);
     assert!(old.markdown().contains("| camera rays | not measured |"), "{}", old.markdown());
+    assert!(old.markdown().contains(", warm (1 pass) | not measured |"), "{}", old.markdown());
+    // The warm denoiser figure: five timed calls after one untimed, shown beside the pipeline's.
+    let warm = report.denoise_warm_s_per_mpixel.expect("measured");
+    assert!(warm.min > 0.0 && warm.min <= warm.median && warm.median <= warm.max, "{warm:?}");
+    let [median] = figures("denoise s / Mpixel, warm (1 pass, 5 calls)")[..] else { panic!("{md}") };
+    assert!((median - warm.median).abs() <= 5e-4, "{median} against {warm:?}\n{md}");
+    assert_eq!(json["denoise_warm_s_per_mpixel"]["median"].as_f64(), Some(warm.median));
 }

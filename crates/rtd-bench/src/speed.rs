@@ -2,9 +2,11 @@
 //! denoise seconds per megapixel, each the median of several runs with the min–max range, and
 //! the render's rays/s as a share of raw closest-hit traversal on the same scene.
 
+use std::time::Instant;
+
 use rtd_denoise::Denoiser;
 use rtd_image::{Progress, Quiet};
-use rtd_pipeline::{Budget, Pipeline, SceneView};
+use rtd_pipeline::{denoise_input, Budget, Pipeline, PipelineRun, SceneView};
 use rtd_render::RenderSettings;
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +17,8 @@ use crate::BenchError;
 pub const PROBE_RAYS: u32 = 1 << 16;
 /// Seconds (at least) each raw traversal rate is measured for.
 pub const PROBE_SECONDS: f64 = 1.0;
+/// Timed warm calls of the denoiser, after one untimed, on the last run's render.
+pub const WARM_DENOISE_RUNS: usize = 5;
 
 /// Median and range of repeated measurements.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -54,8 +58,14 @@ pub struct SpeedReport {
     pub mrays_per_s: Spread,
     /// Guide pass seconds per megapixel.
     pub guide_s_per_mpixel: Spread,
-    /// Denoiser seconds per megapixel.
+    /// Denoiser seconds per megapixel, as the pipeline spent them after each render (cold:
+    /// the first touch of its buffers included, as in a one-shot `rtd render --denoise`).
     pub denoise_s_per_mpixel: Spread,
+    /// Denoiser seconds per megapixel of [`WARM_DENOISE_RUNS`] calls on the last run's render
+    /// after one untimed call: the figure to compare with OIDN's, which is timed warm too (None:
+    /// a cancelled run, or a report from before it was measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoise_warm_s_per_mpixel: Option<Spread>,
     /// The denoiser's self-ensemble passes.
     pub denoise_passes: usize,
     /// Raw closest-hit traversal of camera rays, millions of rays per second (one measurement;
@@ -83,6 +93,7 @@ pub fn run_speed(
 ) -> Result<SpeedReport, BenchError> {
     let mp = (width as f64 * height as f64) / 1e6;
     let (mut paths, mut rays, mut guide_t, mut den_t) = (vec![], vec![], vec![], vec![]);
+    let mut last = None;
     progress.start(runs as u64, "speed");
     for run in 0..runs.max(1) {
         let settings = RenderSettings::new(width, height).seed(run as u64);
@@ -91,16 +102,19 @@ pub fn run_speed(
         rays.push(r.stats.rays as f64 / r.stats.seconds / 1e6);
         guide_t.push(r.timings.guide_s.unwrap_or(0.0) / mp);
         den_t.push(r.timings.denoise_s.unwrap_or(0.0) / mp);
+        last = Some(r);
         progress.inc(1);
         if progress.cancelled() {
             break;
         }
     }
-    // Raw traversal after the renders, on the same pool and scene.
-    let raw = if progress.cancelled() {
-        RawTraversal { camera: None, bounce: None }
-    } else {
-        RawTraversal::measure(&view.scene, &view.camera, (width, height), PROBE_RAYS, PROBE_SECONDS)
+    // Warm denoiser calls and raw traversal after the renders, on the same pool and scene.
+    let (warm, raw) = match last.filter(|_| !progress.cancelled()) {
+        Some(r) => (
+            warm_denoise_s(denoiser, &r, mp)?,
+            RawTraversal::measure(&view.scene, &view.camera, (width, height), PROBE_RAYS, PROBE_SECONDS),
+        ),
+        None => (None, RawTraversal { camera: None, bounce: None }),
     };
     Ok(SpeedReport {
         scene: view.path.display().to_string(),
@@ -112,10 +126,29 @@ pub fn run_speed(
         mrays_per_s: Spread::of(rays),
         guide_s_per_mpixel: Spread::of(guide_t),
         denoise_s_per_mpixel: Spread::of(den_t),
+        denoise_warm_s_per_mpixel: warm,
         denoise_passes: denoiser.ensemble_passes(),
         raw_camera_mrays_per_s: raw.camera,
         raw_bounce_mrays_per_s: raw.bounce,
     })
+}
+
+/// Seconds per call, per `mp` megapixels, of [`WARM_DENOISE_RUNS`] denoiser calls on `run`'s
+/// render and guide pass after one untimed call (None without a guide pass).
+fn warm_denoise_s(denoiser: &Denoiser, run: &PipelineRun, mp: f64) -> Result<Option<Spread>, BenchError> {
+    let Some(pass) = &run.guide else {
+        return Ok(None);
+    };
+    let (beauty, variance) = (run.film.beauty(), run.film.variance());
+    let input = denoise_input(&beauty, pass).variance(variance.as_ref());
+    denoiser.denoise(&input)?;
+    let mut seconds = vec![];
+    for _ in 0..WARM_DENOISE_RUNS {
+        let t = Instant::now();
+        std::hint::black_box(denoiser.denoise(&input)?);
+        seconds.push(t.elapsed().as_secs_f64() / mp);
+    }
+    Ok(Some(Spread::of(seconds)))
 }
 
 impl SpeedReport {
@@ -133,8 +166,13 @@ impl SpeedReport {
             Some(r) => format!("| {name} | {r:.3} | {:.2} |\n", self.traversal_share(r)),
             None => format!("| {name} | not measured | – |\n"),
         };
+        let passes = format!("{} pass{}", self.denoise_passes, if self.denoise_passes == 1 { "" } else { "es" });
+        let warm = match &self.denoise_warm_s_per_mpixel {
+            Some(w) => row(&format!("denoise s / Mpixel, warm ({passes}, {WARM_DENOISE_RUNS} calls)"), w),
+            None => format!("| denoise s / Mpixel, warm ({passes}) | not measured | – |\n"),
+        };
         format!(
-            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}\n\
+            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}{}\n\
              Raw closest-hit traversal on the same scene (one measurement each):\n\n\
              | rays | M rays/s | render rays/s ÷ raw |\n|---|---|---|\n{}{}",
             self.scene,
@@ -145,14 +183,8 @@ impl SpeedReport {
             row("render M paths/s", &self.mpaths_per_s),
             row("render M rays/s", &self.mrays_per_s),
             row("guide s / Mpixel", &self.guide_s_per_mpixel),
-            row(
-                &format!(
-                    "denoise s / Mpixel ({} pass{})",
-                    self.denoise_passes,
-                    if self.denoise_passes == 1 { "" } else { "es" }
-                ),
-                &self.denoise_s_per_mpixel
-            ),
+            row(&format!("denoise s / Mpixel, in the pipeline ({passes})"), &self.denoise_s_per_mpixel),
+            warm,
             raw("camera rays", self.raw_camera_mrays_per_s),
             raw("diffuse bounces from the camera hits", self.raw_bounce_mrays_per_s),
         )

@@ -1,4 +1,5 @@
 use std::path::Path;
+use std::sync::LazyLock;
 
 use glam::Vec3;
 
@@ -33,6 +34,23 @@ pub fn srgb_to_linear(x: f32) -> f32 {
     } else {
         ((x + 0.055) / 1.055).powf(2.4)
     }
+}
+
+/// [`srgb_to_linear`] of an 8-bit code `v / 255`, from a table made by that function (the same
+/// bits, without a `powf` per texel).
+#[inline]
+pub fn srgb8_to_linear(v: u8) -> f32 {
+    static TABLE: LazyLock<[f32; 256]> = LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
+    TABLE[v as usize]
+}
+
+/// [`srgb_to_linear`] of a 16-bit code `v / 65535`, from a table made by that function on first
+/// use (256 KiB).
+#[inline]
+pub fn srgb16_to_linear(v: u16) -> f32 {
+    static TABLE: LazyLock<Vec<f32>> =
+        LazyLock::new(|| (0..=u16::MAX).map(|i| srgb_to_linear(i as f32 / 65535.0)).collect());
+    TABLE[v as usize]
 }
 
 /// ACES filmic approximation (Narkowicz 2015) applied per channel.
@@ -109,7 +127,7 @@ pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
     .map_err(|e| ImageError::decode(path, e))?;
     let (pixels, size): (Vec<Vec3>, (u32, u32)) = match &decoded {
         Decoded::Eight(img) => {
-            let lin = |v: u8| srgb_to_linear(v as f32 / 255.0);
+            let lin = srgb8_to_linear;
             (img.pixels().map(|p| Vec3::new(lin(p[0]), lin(p[1]), lin(p[2]))).collect(), img.dimensions())
         }
         Decoded::Wide(img) => {
@@ -130,6 +148,17 @@ pub fn read_ldr(path: &Path) -> Result<HdrImage, ImageError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn srgb_tables_give_the_functions_bits() {
+        for v in 0..=255u8 {
+            assert_eq!(srgb8_to_linear(v).to_bits(), srgb_to_linear(v as f32 / 255.0).to_bits(), "{v}");
+        }
+        for v in 0..=u16::MAX {
+            assert_eq!(srgb16_to_linear(v).to_bits(), srgb_to_linear(v as f32 / 65535.0).to_bits(), "{v}");
+        }
+        assert_eq!((srgb8_to_linear(0), srgb8_to_linear(255)), (0.0, 1.0));
+    }
 
     #[test]
     fn srgb_round_trip() {

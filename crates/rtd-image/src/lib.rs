@@ -37,7 +37,9 @@ pub use exr_io::{encode_exr, read_exr, write_exr, Layers};
 pub use format::ImageFormat;
 pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};
-pub use ldr::{linear_to_srgb, read_ldr, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap};
+pub use ldr::{
+    linear_to_srgb, read_ldr, srgb16_to_linear, srgb8_to_linear, srgb_to_linear, tonemap_to_srgb8, write_ldr, Tonemap,
+};
 pub use limits::{check_image_size, MAX_DIMENSION, MAX_PIXELS};
 pub use parser_guard::{contain_panic, contained_panics};
 pub use pfm::{decode_pfm, encode_pfm, read_pfm, read_pfm_header, write_pfm, PfmHeader};

@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use glam::{Mat3, Vec2, Vec3, Vec4};
 use gltf::image::Format;
 use gltf::json::Value;
+use rayon::prelude::*;
 
 use crate::{AlphaMode, Clearcoat, Material, Scene, Sheen, Texture, TextureRef, UvTransform, Wrap};
 
@@ -111,43 +112,110 @@ fn decode_texture(tex: &gltf::Texture, images: &[gltf::image::Data], srgb: bool)
     let Some(data) = images.get(tex.source().index()) else {
         return Texture::constant(Vec4::ONE);
     };
-    let px = &data.pixels;
-    let u16_at = |i: usize| u16::from_le_bytes([px[2 * i], px[2 * i + 1]]) as f32 / 65535.0;
-    let f32_at = |i: usize| f32::from_le_bytes([px[4 * i], px[4 * i + 1], px[4 * i + 2], px[4 * i + 3]]);
+    let (channels, sample) = match data.format {
+        Format::R8 => (1, ChannelType::U8),
+        Format::R8G8 => (2, ChannelType::U8),
+        Format::R8G8B8 => (3, ChannelType::U8),
+        Format::R8G8B8A8 => (4, ChannelType::U8),
+        Format::R16 => (1, ChannelType::U16),
+        Format::R16G16 => (2, ChannelType::U16),
+        Format::R16G16B16 => (3, ChannelType::U16),
+        Format::R16G16B16A16 => (4, ChannelType::U16),
+        Format::R32G32B32FLOAT => (3, ChannelType::F32),
+        Format::R32G32B32A32FLOAT => (4, ChannelType::F32),
+    };
     let n = data.width as usize * data.height as usize;
-    let (channels, fetch): (usize, Box<dyn Fn(usize) -> f32>) = match data.format {
-        Format::R8 => (1, Box::new(|i| px[i] as f32 / 255.0)),
-        Format::R8G8 => (2, Box::new(|i| px[i] as f32 / 255.0)),
-        Format::R8G8B8 => (3, Box::new(|i| px[i] as f32 / 255.0)),
-        Format::R8G8B8A8 => (4, Box::new(|i| px[i] as f32 / 255.0)),
-        Format::R16 => (1, Box::new(u16_at)),
-        Format::R16G16 => (2, Box::new(u16_at)),
-        Format::R16G16B16 => (3, Box::new(u16_at)),
-        Format::R16G16B16A16 => (4, Box::new(u16_at)),
-        Format::R32G32B32FLOAT => (3, Box::new(f32_at)),
-        Format::R32G32B32A32FLOAT => (4, Box::new(f32_at)),
-    };
-    let is_float = matches!(data.format, Format::R32G32B32FLOAT | Format::R32G32B32A32FLOAT);
-    let lin = |x: f32| {
-        if srgb && !is_float {
-            rtd_image::srgb_to_linear(x)
-        } else {
-            x
-        }
-    };
-    let texels = (0..n)
-        .map(|i| {
-            let c = |k: usize| fetch(i * channels + k);
+    let (w, h, wrap_u, wrap_v) = (data.width, data.height, wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
+    // 8-bit images stay 8-bit (decoded on each lookup to the same values), the rest as floats.
+    let texture =
+        match sample {
+            ChannelType::U8 => rgba8_from(&data.pixels, n, channels)
+                .map(|t| Texture::from_rgba8(w, h, t, srgb, wrap_u, wrap_v, nearest)),
+            _ => texels_from(&data.pixels, n, channels, sample, srgb)
+                .map(|t| Texture::new(w, h, t, wrap_u, wrap_v, nearest)),
+        };
+    texture.unwrap_or_else(|| Texture::constant(Vec4::ONE))
+}
+
+/// `n` 8-bit texels of `channels` channels as RGBA, as [`Texture::from_rgba8`] keeps them: one
+/// channel is luminance, two are luminance + alpha, and a missing alpha is opaque. None if
+/// `pixels` is too short.
+fn rgba8_from(pixels: &[u8], n: usize, channels: usize) -> Option<Vec<[u8; 4]>> {
+    let bytes = pixels.get(..n * channels)?;
+    let texels = bytes
+        .par_chunks_exact(channels)
+        .map(|t| match *t {
+            [l] => [l, l, l, 255],
+            [l, a] => [l, l, l, a],
+            [r, g, b] => [r, g, b, 255],
+            [r, g, b, a, ..] => [r, g, b, a],
+            [] => [255; 4],
+        })
+        .collect();
+    Some(texels)
+}
+
+/// `n` texels of `channels` channels stored as `sample` in `pixels`, as linear RGBA: colour
+/// channels sRGB-decoded when `srgb`, one channel taken as luminance and two as luminance +
+/// alpha (as PNG decoders give them). Texels are converted in parallel, in order. None if
+/// `pixels` is too short.
+fn texels_from(pixels: &[u8], n: usize, channels: usize, sample: ChannelType, srgb: bool) -> Option<Vec<Vec4>> {
+    let stride = channels * sample.bytes();
+    let bytes = pixels.get(..n * stride)?;
+    let texels = bytes
+        .par_chunks_exact(stride)
+        .map(|t| {
+            let plain = |k: usize| sample.plain(&t[k * sample.bytes()..]);
+            let c = |k: usize| if srgb { sample.srgb(&t[k * sample.bytes()..]) } else { plain(k) };
             match channels {
-                // One channel is luminance, two are luminance + alpha (as PNG decoders give them).
-                1 => Vec4::new(lin(c(0)), lin(c(0)), lin(c(0)), 1.0),
-                2 => Vec4::new(lin(c(0)), lin(c(0)), lin(c(0)), c(1)),
-                3 => Vec4::new(lin(c(0)), lin(c(1)), lin(c(2)), 1.0),
-                _ => Vec4::new(lin(c(0)), lin(c(1)), lin(c(2)), c(3)),
+                1 => Vec4::new(c(0), c(0), c(0), 1.0),
+                2 => Vec4::new(c(0), c(0), c(0), plain(1)),
+                3 => Vec4::new(c(0), c(1), c(2), 1.0),
+                _ => Vec4::new(c(0), c(1), c(2), plain(3)),
             }
         })
         .collect();
-    Texture::new(data.width, data.height, texels, wrap(sampler.wrap_s()), wrap(sampler.wrap_t()), nearest)
+    Some(texels)
+}
+
+/// How a decoded glTF image stores one channel.
+#[derive(Clone, Copy, Debug)]
+enum ChannelType {
+    U8,
+    U16,
+    F32,
+}
+
+impl ChannelType {
+    /// Bytes per channel.
+    fn bytes(self) -> usize {
+        match self {
+            ChannelType::U8 => 1,
+            ChannelType::U16 => 2,
+            ChannelType::F32 => 4,
+        }
+    }
+
+    /// The channel at the start of `b` as stored: integers normalised to [0, 1].
+    #[inline]
+    fn plain(self, b: &[u8]) -> f32 {
+        match self {
+            ChannelType::U8 => b[0] as f32 / 255.0,
+            ChannelType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
+            ChannelType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        }
+    }
+
+    /// The channel as an sRGB-encoded colour, linearised ([`rtd_image::srgb_to_linear`] of the
+    /// normalised integer; float images are linear already).
+    #[inline]
+    fn srgb(self, b: &[u8]) -> f32 {
+        match self {
+            ChannelType::U8 => rtd_image::srgb8_to_linear(b[0]),
+            ChannelType::U16 => rtd_image::srgb16_to_linear(u16::from_le_bytes([b[0], b[1]])),
+            ChannelType::F32 => self.plain(b),
+        }
+    }
 }
 
 /// The rtd material of a glTF material.
@@ -268,4 +336,76 @@ fn raw_transform(ext: Option<&Value>) -> (Option<Mat3>, Option<u64>) {
     let rotation = v.get("rotation").and_then(Value::as_f64).unwrap_or(0.0) as f32;
     let matrix = UvTransform { offset: pair("offset", 0.0), rotation, scale: pair("scale", 1.0) }.matrix();
     (Some(matrix), v.get("texCoord").and_then(Value::as_u64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rtd_image::srgb_to_linear;
+
+    /// Every storage and channel count against the per-channel formulas: integers normalised,
+    /// colour channels through `srgb_to_linear` (bit for bit) when sRGB, alpha never.
+    #[test]
+    fn texels_match_the_channel_formulas_for_every_format() {
+        let bytes: Vec<u8> = (0..=255u8).chain((0..=255u8).rev()).collect();
+        for (sample, scale) in [(ChannelType::U8, 255.0f32), (ChannelType::U16, 65535.0)] {
+            let value = |b: &[u8]| match sample {
+                ChannelType::U8 => b[0] as f32,
+                _ => u16::from_le_bytes([b[0], b[1]]) as f32,
+            } / scale;
+            for channels in 1..=4 {
+                for srgb in [false, true] {
+                    let stride = channels * sample.bytes();
+                    let n = bytes.len() / stride;
+                    let texels = texels_from(&bytes, n, channels, sample, srgb).expect("long enough");
+                    assert_eq!(texels.len(), n);
+                    for (i, t) in texels.iter().enumerate() {
+                        let ch = |k: usize| value(&bytes[i * stride + k * sample.bytes()..]);
+                        let col = |k: usize| if srgb { srgb_to_linear(ch(k)) } else { ch(k) };
+                        let want = match channels {
+                            1 => Vec4::new(col(0), col(0), col(0), 1.0),
+                            2 => Vec4::new(col(0), col(0), col(0), ch(1)),
+                            3 => Vec4::new(col(0), col(1), col(2), 1.0),
+                            _ => Vec4::new(col(0), col(1), col(2), ch(3)),
+                        };
+                        assert_eq!(t.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{sample:?} {i}");
+                    }
+                }
+            }
+        }
+        // Float images are linear whatever the slot says.
+        let floats: Vec<u8> = [0.25f32, 2.0, -1.0, 0.5].iter().flat_map(|x| x.to_le_bytes()).collect();
+        assert_eq!(texels_from(&floats, 1, 4, ChannelType::F32, true), Some(vec![Vec4::new(0.25, 2.0, -1.0, 0.5)]));
+        // Too few bytes for the size: no texels rather than a panic.
+        assert_eq!(texels_from(&bytes[..5], 2, 3, ChannelType::U8, true), None);
+        assert_eq!(rgba8_from(&bytes[..5], 2, 3), None);
+    }
+
+    /// An 8-bit image kept as bytes samples exactly as its texels decoded to floats do: plain,
+    /// nearest and footprint-filtered lookups (which read the mip levels), every wrap mode.
+    #[test]
+    fn eight_bit_textures_sample_as_their_decoded_floats() {
+        let (w, h) = (13u32, 8u32);
+        let n = (w * h) as usize;
+        let bytes: Vec<u8> = (0..n * 4).map(|i| (i * 97 % 256) as u8).collect();
+        for channels in 1..=4 {
+            for srgb in [false, true] {
+                for (wrap, nearest) in [(Wrap::Repeat, false), (Wrap::Clamp, false), (Wrap::Mirror, true)] {
+                    let floats = texels_from(&bytes, n, channels, ChannelType::U8, srgb).unwrap();
+                    let a = Texture::new(w, h, floats, wrap, wrap, nearest);
+                    let b =
+                        Texture::from_rgba8(w, h, rgba8_from(&bytes, n, channels).unwrap(), srgb, wrap, wrap, nearest);
+                    assert_eq!(b.heap_bytes() + 12 * n, a.heap_bytes());
+                    assert_eq!(a.mean(), b.mean());
+                    for k in 0..400 {
+                        let uv =
+                            Vec2::new((k as f32 * 0.618).fract() * 3.0 - 1.0, (k as f32 * 0.377).fract() * 3.0 - 1.0);
+                        let (du, dv) = (Vec2::new(0.02 * (k % 7) as f32, 0.0), Vec2::new(0.0, 0.03 * (k % 5) as f32));
+                        assert_eq!(a.sample(uv), b.sample(uv), "{channels} {srgb} {uv}");
+                        assert_eq!(a.sample_footprint(uv, du, dv), b.sample_footprint(uv, du, dv), "{channels} {uv}");
+                    }
+                }
+            }
+        }
+    }
 }

@@ -2,7 +2,7 @@
 //!
 //! glTF 2.0 (`.gltf`, `.glb`) and OBJ/MTL files are flattened into a [`Scene`]: world-space
 //! triangles with per-vertex shading attributes, glTF metallic-roughness [`Material`]s,
-//! linear-float [`Texture`]s, [`Camera`]s, punctual [`Light`]s and an [`Environment`].
+//! [`Texture`]s read as linear float, [`Camera`]s, punctual [`Light`]s and an [`Environment`].
 //! Bad input gives a [`SceneError`] naming the file and the problem (a missing file reads
 //! `PATH: no such file`; a corrupt glTF accessor names its mesh and accessor); recoverable
 //! problems (skipped degenerate triangles, a missing camera) become [`Scene::warnings`].

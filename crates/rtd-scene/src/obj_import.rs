@@ -159,12 +159,7 @@ fn load_texture(path: &Path) -> Result<Texture, String> {
         let (dw, dh) = img.dimensions();
         return Err(named(&format!("header says {w}x{h} but the pixel data is {dw}x{dh}")));
     }
-    let texels = img
-        .pixels()
-        .map(|p| {
-            let c = |k: usize| rtd_image::srgb_to_linear(p[k] as f32 / 255.0);
-            Vec4::new(c(0), c(1), c(2), p[3] as f32 / 255.0)
-        })
-        .collect();
-    Ok(Texture::new(img.width(), img.height(), texels, Wrap::Repeat, Wrap::Repeat, false))
+    let (width, height) = img.dimensions();
+    let texels = img.pixels().map(|p| p.0).collect();
+    Ok(Texture::from_rgba8(width, height, texels, true, Wrap::Repeat, Wrap::Repeat, false))
 }

@@ -1,4 +1,5 @@
 use glam::{Vec2, Vec4};
+use rayon::prelude::*;
 
 /// How texture coordinates outside [0,1] are mapped back in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -12,7 +13,7 @@ pub enum Wrap {
     Mirror,
 }
 
-/// A decoded texture in linear float RGBA (sRGB colour textures are linearised at load), with a
+/// A decoded texture read as linear float RGBA (sRGB colour textures are linearised), with a
 /// box-filtered mip pyramid for footprint-filtered lookups ([`Texture::sample_footprint`]).
 #[derive(Debug, Clone)]
 pub struct Texture {
@@ -21,7 +22,7 @@ pub struct Texture {
     /// Height in texels.
     pub height: u32,
     /// Row-major texels, top row first (glTF's UV origin is the top-left).
-    pub texels: Vec<Vec4>,
+    texels: Texels,
     /// Wrap mode along u.
     pub wrap_u: Wrap,
     /// Wrap mode along v.
@@ -30,6 +31,43 @@ pub struct Texture {
     pub nearest: bool,
     /// Mip levels 1, 2, …: each halves the one before (2×2 box), down to 1×1.
     mips: Vec<MipLevel>,
+}
+
+/// A texture's full-resolution texels as stored.
+#[derive(Debug, Clone)]
+enum Texels {
+    /// Linear RGBA floats.
+    Linear(Vec<Vec4>),
+    /// 8-bit RGBA as an 8-bit image holds it, colour sRGB-encoded when `srgb`, decoded on each
+    /// fetch ([`decode_rgba8`]): a quarter of the floats' memory, and the same values.
+    Rgba8 { texels: Vec<[u8; 4]>, srgb: bool },
+}
+
+impl Texels {
+    /// Texel `i`, as linear RGBA.
+    #[inline]
+    fn get(&self, i: usize) -> Vec4 {
+        match self {
+            Texels::Linear(t) => t[i],
+            Texels::Rgba8 { texels, srgb } => decode_rgba8(texels[i], *srgb),
+        }
+    }
+
+    /// Number of texels.
+    fn len(&self) -> usize {
+        match self {
+            Texels::Linear(t) => t.len(),
+            Texels::Rgba8 { texels, .. } => texels.len(),
+        }
+    }
+}
+
+/// An 8-bit RGBA texel as linear RGBA: colour through [`rtd_image::srgb8_to_linear`] when `srgb`
+/// (else v / 255), alpha v / 255 (the values an 8-bit image's channels decode to at load).
+#[inline(always)]
+fn decode_rgba8(t: [u8; 4], srgb: bool) -> Vec4 {
+    let c = |v: u8| if srgb { rtd_image::srgb8_to_linear(v) } else { v as f32 / 255.0 };
+    Vec4::new(c(t[0]), c(t[1]), c(t[2]), t[3] as f32 / 255.0)
 }
 
 /// One reduced level of a texture's mip pyramid.
@@ -104,12 +142,15 @@ fn next_index(i: i64, a: usize, n: u32, wrap: Wrap) -> usize {
     }
 }
 
-/// 2×2 box reduction of a `w`×`h` level (an odd last row or column is averaged with itself).
-fn reduce(w: u32, h: u32, texels: &[Vec4]) -> MipLevel {
+/// 2×2 box reduction of a `w`×`h` level whose texel `i` is `texel(i)` (an odd last row or column
+/// is averaged with itself).
+fn reduce(w: u32, h: u32, texel: impl Fn(usize) -> Vec4 + Sync) -> MipLevel {
     let (nw, nh) = (w.div_ceil(2).max(1), h.div_ceil(2).max(1));
-    let at = |x: u32, y: u32| texels[(y.min(h - 1) * w + x.min(w - 1)) as usize];
+    let at = |x: u32, y: u32| texel((y.min(h - 1) * w + x.min(w - 1)) as usize);
+    // Rows in parallel, collected in order.
     let texels = (0..nh)
-        .flat_map(|y| (0..nw).map(move |x| (x, y)))
+        .into_par_iter()
+        .flat_map_iter(|y| (0..nw).map(move |x| (x, y)))
         .map(|(x, y)| {
             (at(2 * x, 2 * y) + at(2 * x + 1, 2 * y) + at(2 * x, 2 * y + 1) + at(2 * x + 1, 2 * y + 1)) * 0.25
         })
@@ -120,18 +161,48 @@ fn reduce(w: u32, h: u32, texels: &[Vec4]) -> MipLevel {
 impl Texture {
     /// Bytes held by the texels and their mip levels.
     pub fn heap_bytes(&self) -> usize {
-        std::mem::size_of_val(self.texels.as_slice())
-            + self.mips.iter().map(|m| std::mem::size_of_val(m.texels.as_slice())).sum::<usize>()
+        let level0 = match &self.texels {
+            Texels::Linear(t) => std::mem::size_of_val(t.as_slice()),
+            Texels::Rgba8 { texels, .. } => std::mem::size_of_val(texels.as_slice()),
+        };
+        level0 + self.mips.iter().map(|m| std::mem::size_of_val(m.texels.as_slice())).sum::<usize>()
     }
 
-    /// A texture from row-major texels (top row first), with its mip pyramid built.
+    /// A texture from row-major linear texels (top row first), with its mip pyramid built.
     /// `texels.len()` must be `width × height`.
     pub fn new(width: u32, height: u32, texels: Vec<Vec4>, wrap_u: Wrap, wrap_v: Wrap, nearest: bool) -> Self {
+        Self::with_texels(width, height, Texels::Linear(texels), wrap_u, wrap_v, nearest)
+    }
+
+    /// A texture from row-major 8-bit RGBA texels (top row first), kept as they are and decoded on
+    /// each lookup: colour channels as sRGB when `srgb` (else v / 255), alpha v / 255. It samples
+    /// exactly as [`Texture::new`] of the decoded texels does, in a quarter of the memory.
+    /// `texels.len()` must be `width × height`.
+    pub fn from_rgba8(
+        width: u32,
+        height: u32,
+        texels: Vec<[u8; 4]>,
+        srgb: bool,
+        wrap_u: Wrap,
+        wrap_v: Wrap,
+        nearest: bool,
+    ) -> Self {
+        Self::with_texels(width, height, Texels::Rgba8 { texels, srgb }, wrap_u, wrap_v, nearest)
+    }
+
+    /// A texture of `texels`, with its mip pyramid built.
+    fn with_texels(width: u32, height: u32, texels: Texels, wrap_u: Wrap, wrap_v: Wrap, nearest: bool) -> Self {
         debug_assert_eq!(texels.len(), width as usize * height as usize);
         let mut mips: Vec<MipLevel> = Vec::new();
         let (mut w, mut h) = (width, height);
         while w > 1 || h > 1 {
-            let next = reduce(w, h, mips.last().map_or(&texels, |m| &m.texels));
+            let next = match mips.last() {
+                None => match &texels {
+                    Texels::Linear(t) => reduce(w, h, |i| t[i]),
+                    Texels::Rgba8 { texels, srgb } => reduce(w, h, |i| decode_rgba8(texels[i], *srgb)),
+                },
+                Some(m) => reduce(w, h, |i| m.texels[i]),
+            };
             (w, h) = (next.width, next.height);
             mips.push(next);
         }
@@ -147,14 +218,24 @@ impl Texture {
     /// Non-finite coordinates sample texel (0,0).
     #[inline]
     pub fn sample(&self, uv: Vec2) -> Vec4 {
-        self.sample_level(self.width, self.height, &self.texels, uv, self.nearest)
+        let (w, h, nearest) = (self.width, self.height, self.nearest);
+        // One lookup routine per storage, so the fetch inside it does not branch.
+        match &self.texels {
+            Texels::Linear(t) => self.sample_level(w, h, |i| t[i], uv, nearest),
+            Texels::Rgba8 { texels, srgb: true } => {
+                self.sample_level(w, h, |i| decode_rgba8(texels[i], true), uv, nearest)
+            }
+            Texels::Rgba8 { texels, srgb: false } => {
+                self.sample_level(w, h, |i| decode_rgba8(texels[i], false), uv, nearest)
+            }
+        }
     }
 
-    /// Bilinear (or nearest) lookup in one level of `w`×`h` texels.
+    /// Bilinear (or nearest) lookup in one level of `w`×`h` texels, texel `i` being `fetch(i)`.
     #[inline(always)]
-    fn sample_level(&self, w: u32, h: u32, texels: &[Vec4], uv: Vec2, nearest: bool) -> Vec4 {
+    fn sample_level(&self, w: u32, h: u32, fetch: impl Fn(usize) -> Vec4, uv: Vec2, nearest: bool) -> Vec4 {
         let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
-        let texel = |xi: usize, yi: usize| texels[yi * w as usize + xi];
+        let texel = |xi: usize, yi: usize| fetch(yi * w as usize + xi);
         // Texel-centre convention: texel i covers [i, i+1) / n.
         let x = (uv.x as f64) * w as f64 - 0.5;
         let y = (uv.y as f64) * h as f64 - 0.5;
@@ -177,9 +258,9 @@ impl Texture {
     #[inline]
     fn sample_mip(&self, level: usize, uv: Vec2) -> Vec4 {
         match level.checked_sub(1).and_then(|l| self.mips.get(l)) {
-            Some(m) => self.sample_level(m.width, m.height, &m.texels, uv, false),
+            Some(m) => self.sample_level(m.width, m.height, |i| m.texels[i], uv, false),
             None if level == 0 => self.sample(uv),
-            None => self.mips.last().map_or(self.texels[0], |m| m.texels[0]),
+            None => self.mips.last().map_or(self.texels.get(0), |m| m.texels[0]),
         }
     }
 
@@ -229,8 +310,9 @@ impl Texture {
 
     /// Mean of all texels, used to estimate the power of textured emitters.
     pub fn mean(&self) -> Vec4 {
-        let sum = self.texels.iter().fold(glam::DVec4::ZERO, |a, t| a + t.as_dvec4());
-        (sum / self.texels.len().max(1) as f64).as_vec4()
+        let n = self.texels.len();
+        let sum = (0..n).fold(glam::DVec4::ZERO, |a, i| a + self.texels.get(i).as_dvec4());
+        (sum / n.max(1) as f64).as_vec4()
     }
 }
 
