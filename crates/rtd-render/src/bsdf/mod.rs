@@ -302,6 +302,11 @@ impl Bsdf {
 
     /// Value (without the lobe's mixture weight) and sampling pdf of one non-delta lobe,
     /// sharing the half vector, D and the Smith terms between the two.
+    ///
+    /// Never inlined: inlined into [`Bsdf::eval`]'s loop over the lobes, the maths of lobes the
+    /// BSDF does not have (square roots, divisions, table lookups) was computed ahead of the test
+    /// that skips them, as the sheen's was (see [`crate::sheen::Charlie::f`]).
+    #[inline(never)]
     fn lobe_eval(&self, lobe: Lobe, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         const NONE: (Vec3, f32) = (Vec3::ZERO, 0.0);
         match lobe {
