@@ -241,20 +241,39 @@ impl SceneBvh {
     /// current interval, or infinity for a miss, a cut-out, or the triangle `from` the ray leaves.
     #[inline(always)]
     fn slot_t(&self, scene: &Scene, shear: &RayShear, r: &BvhRay, slot: usize, from: u32, inv_k: f32) -> f32 {
-        self.slot_t_within(scene, shear, r.tmin * inv_k, r.tmax * inv_k, slot, from) * self.k
+        self.slot_hit(scene, shear, r, slot, from, inv_k).map_or(f32::INFINITY, |(t, _)| t)
     }
 
-    /// [`SceneBvh::slot_t`] in world space: the hit distance of slot `slot` in (tmin, tmax), or
-    /// infinity.
+    /// [`SceneBvh::slot_t`] with the hit's barycentrics: (scaled t, barycentrics), or None.
     #[inline(always)]
-    fn slot_t_within(&self, scene: &Scene, shear: &RayShear, tmin: f32, tmax: f32, slot: usize, from: u32) -> f32 {
+    fn slot_hit(
+        &self,
+        scene: &Scene,
+        shear: &RayShear,
+        r: &BvhRay,
+        slot: usize,
+        from: u32,
+        inv_k: f32,
+    ) -> Option<(f32, Vec3)> {
+        self.slot_hit_within(scene, shear, r.tmin * inv_k, r.tmax * inv_k, slot, from).map(|(t, b)| (t * self.k, b))
+    }
+
+    /// [`SceneBvh::slot_hit`] in world space: the hit distance and barycentrics of slot `slot`
+    /// in (tmin, tmax), or None for a miss, a cut-out, or the triangle `from` the ray leaves.
+    #[inline(always)]
+    fn slot_hit_within(
+        &self,
+        scene: &Scene,
+        shear: &RayShear,
+        tmin: f32,
+        tmax: f32,
+        slot: usize,
+        from: u32,
+    ) -> Option<(f32, Vec3)> {
         if self.slot_tri[slot] == from {
-            return f32::INFINITY;
+            return None;
         }
-        match shear.intersect(&self.verts[slot], tmin, tmax) {
-            Some((t, b)) if !self.cut_away(slot, b, scene) => t,
-            _ => f32::INFINITY,
-        }
+        shear.intersect(&self.verts[slot], tmin, tmax).filter(|&(_, b)| !self.cut_away(slot, b, scene))
     }
 
     /// The closest hit along `origin + t·dir` for t in (0, tmax), or None.
@@ -289,15 +308,20 @@ impl SceneBvh {
         let shear = RayShear::new(origin, dir);
         let inv_k = 1.0 / self.k;
         let mut hit = RayHit::none();
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| self.slot_t(scene, &shear, r, slot, from, inv_k));
+        // obvhs keeps a hit exactly when its t is below the ray's current end, which every t
+        // `slot_hit` returns is: the last barycentrics returned are the winner's.
+        let mut bary = Vec3::splat(1.0 / 3.0);
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| {
+            let Some((t, b)) = self.slot_hit(scene, &shear, r, slot, from, inv_k) else { return f32::INFINITY };
+            if t < r.tmax {
+                bary = b;
+            }
+            t
+        });
         if !found {
             return None;
         }
-        // Barycentrics of the winning triangle (the same arithmetic, so the same values).
-        let slot = hit.primitive_id as usize;
-        let bary =
-            shear.intersect(&self.verts[slot], 0.0, f32::INFINITY).map(|(_, b)| b).unwrap_or(Vec3::splat(1.0 / 3.0));
-        Some(Hit { triangle: self.slot_tri[slot], t: hit.t * inv_k, bary })
+        Some(Hit { triangle: self.slot_tri[hit.primitive_id as usize], t: hit.t * inv_k, bary })
     }
 
     /// True if anything blocks `origin + t·dir` for t in (0, tmax); `dir` should be unit length.

@@ -244,7 +244,7 @@ impl SceneBvh {
                         continue;
                     }
                     for r in bits(rays_here & !blocked) {
-                        if self.slot_t_within(scene, &shear[r], 0.0, tmax, slot, from) < f32::INFINITY {
+                        if self.slot_hit_within(scene, &shear[r], 0.0, tmax, slot, from).is_some() {
                             blocked |= 1 << r;
                         }
                     }
