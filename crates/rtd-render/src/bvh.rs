@@ -20,12 +20,15 @@
 
 use std::time::Duration;
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{UVec2, Vec2, Vec3, Vec3A}; // UVec2: named by obvhs::traverse!
+use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
-use obvhs::ray::{Ray as BvhRay, RayHit};
+use obvhs::ray::Ray as BvhRay;
 use obvhs::triangle::Triangle as BvhTriangle;
 use obvhs::BvhBuildParams;
 use rtd_scene::{Aabb, AlphaMode, Scene};
+
+use crate::prefetch::prefetch;
 
 mod bundle;
 pub use bundle::MAX_BUNDLE;
@@ -238,13 +241,8 @@ impl SceneBvh {
 
     /// The traversal's test of BVH slot `slot` against ray `r` (scaled by `k`; `inv_k` = 1/k,
     /// hoisted out of the traversal by the caller): its scaled hit distance within the ray's
-    /// current interval, or infinity for a miss, a cut-out, or the triangle `from` the ray leaves.
-    #[inline(always)]
-    fn slot_t(&self, scene: &Scene, shear: &RayShear, r: &BvhRay, slot: usize, from: u32, inv_k: f32) -> f32 {
-        self.slot_hit(scene, shear, r, slot, from, inv_k).map_or(f32::INFINITY, |(t, _)| t)
-    }
-
-    /// [`SceneBvh::slot_t`] with the hit's barycentrics: (scaled t, barycentrics), or None.
+    /// current interval and its barycentrics, or None for a miss, a cut-out, or the triangle
+    /// `from` the ray leaves.
     #[inline(always)]
     fn slot_hit(
         &self,
@@ -273,7 +271,10 @@ impl SceneBvh {
         if self.slot_tri[slot] == from {
             return None;
         }
-        shear.intersect(&self.verts[slot], tmin, tmax).filter(|&(_, b)| !self.cut_away(slot, b, scene))
+        match shear.intersect(&self.verts[slot], tmin, tmax) {
+            Some((t, b)) if !self.cut_away(slot, b, scene) => Some((t, b)),
+            _ => None,
+        }
     }
 
     /// The closest hit along `origin + t·dir` for t in (0, tmax), or None.
@@ -307,21 +308,22 @@ impl SceneBvh {
         let ray = self.bvh_ray(origin, dir, tmin, tmax)?;
         let shear = RayShear::new(origin, dir);
         let inv_k = 1.0 / self.k;
-        let mut hit = RayHit::none();
-        // obvhs keeps a hit exactly when its t is below the ray's current end, which every t
-        // `slot_hit` returns is: the last barycentrics returned are the winner's.
-        let mut bary = Vec3::splat(1.0 / 3.0);
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, slot| {
-            let Some((t, b)) = self.slot_hit(scene, &shear, r, slot, from, inv_k) else { return f32::INFINITY };
-            if t < r.tmax {
-                bary = b;
+        let (mut best, mut bary) = (None, Vec3::ZERO);
+        let mut traverse_ray = ray;
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        obvhs::traverse!(self.bvh, node, state, self.node_hits(node, &traverse_ray, state.oct_inv4), {
+            let slot = state.primitive_id as usize;
+            match self.slot_hit(scene, &shear, &traverse_ray, slot, from, inv_k) {
+                Some((t, b)) if t < traverse_ray.tmax => {
+                    best = Some(slot);
+                    bary = b;
+                    traverse_ray.tmax = t;
+                }
+                _ => {}
             }
-            t
         });
-        if !found {
-            return None;
-        }
-        Some(Hit { triangle: self.slot_tri[hit.primitive_id as usize], t: hit.t * inv_k, bary })
+        best.map(|slot| Hit { triangle: self.slot_tri[slot], t: traverse_ray.tmax * inv_k, bary })
     }
 
     /// True if anything blocks `origin + t·dir` for t in (0, tmax); `dir` should be unit length.
@@ -337,7 +339,35 @@ impl SceneBvh {
         let Some(ray) = self.bvh_ray(origin, dir, 0.0, tmax) else { return false };
         let shear = RayShear::new(origin, dir);
         let inv_k = 1.0 / self.k;
-        !self.bvh.ray_traverse_miss(ray, |r, slot| self.slot_t(scene, &shear, r, slot, from, inv_k))
+        let mut blocked = false;
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        'walk: {
+            obvhs::traverse!(self.bvh, node, state, self.node_hits(node, &ray, state.oct_inv4), {
+                if self.slot_hit(scene, &shear, &ray, state.primitive_id as usize, from, inv_k).is_some() {
+                    blocked = true;
+                    break 'walk;
+                }
+            });
+        }
+        blocked
+    }
+
+    /// The children of `node` that `ray` reaches (obvhs's hit mask: inner nodes in the top 8
+    /// bits, leaf triangles in the low 24), with the reached triangles' vertices prefetched:
+    /// their tests follow at once, and their loads then overlap instead of waiting in turn.
+    #[inline(always)]
+    fn node_hits(&self, node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> u32 {
+        let hits = node.intersect_ray(ray, oct_inv4);
+        let mut triangles = hits & 0x00ff_ffff;
+        while triangles != 0 {
+            let slot = node.primitive_base_idx as usize + triangles.trailing_zeros() as usize;
+            if let Some(v) = self.verts.get(slot) {
+                prefetch(v);
+            }
+            triangles &= triangles - 1;
+        }
+        hits
     }
 }
 
