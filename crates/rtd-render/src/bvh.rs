@@ -319,6 +319,11 @@ impl SceneBvh {
                     best = Some(slot);
                     bary = b;
                     traverse_ray.tmax = t;
+                    // The shading that follows reads the scene's copy of the nearest triangle
+                    // (normals, texture coordinates, material): start its load now.
+                    if let Some(tri) = scene.triangles.get(self.slot_tri[slot] as usize) {
+                        prefetch(tri);
+                    }
                 }
                 _ => {}
             }
