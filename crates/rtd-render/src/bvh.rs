@@ -3,7 +3,7 @@
 //! obvhs reorders primitives; `slot_tri` maps a BVH slot back to the scene's triangle index.
 //! The triangle test is Woop, Benthin & Wald's watertight algorithm (JCGT 2013), which never
 //! lets a ray slip between two triangles sharing an edge. Alpha-masked triangles are tested
-//! against their cut-out in the traversal callback, so cut-outs also let shadow rays through.
+//! against their cut-out in the walk's triangle test, so cut-outs also let shadow rays through.
 //!
 //! Scale: obvhs culls every node whose interval ends before t = 1e-4 (an absolute epsilon), which
 //! would drop geometry near the ray origin in small scenes. The BVH is therefore built on
@@ -368,16 +368,25 @@ impl SceneBvh {
     #[inline(always)]
     fn node_hits(&self, node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> u32 {
         let hits = node.intersect_ray(ray, oct_inv4);
-        let mut triangles = hits & 0x00ff_ffff;
-        while triangles != 0 {
-            let slot = node.primitive_base_idx as usize + triangles.trailing_zeros() as usize;
-            if let Some(v) = self.verts.get(slot) {
+        for bit in bits(hits & 0x00ff_ffff) {
+            if let Some(v) = self.verts.get(node.primitive_base_idx as usize + bit) {
                 prefetch(v);
             }
-            triangles &= triangles - 1;
         }
         hits
     }
+}
+
+/// Iterates the set bits of `m`, lowest first.
+#[inline]
+fn bits(mut m: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            i
+        })
+    })
 }
 
 #[cfg(test)]

@@ -22,7 +22,7 @@ use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray as BvhRay;
 use rtd_scene::Scene;
 
-use super::{RayShear, SceneBvh};
+use super::{bits, RayShear, SceneBvh};
 use crate::prefetch::prefetch;
 
 /// Most rays in one bundle (one bit each in a `u32` mask).
@@ -30,18 +30,6 @@ pub const MAX_BUNDLE: usize = 32;
 
 /// obvhs's near cull of node intervals, in BVH space (see the module doc of `bvh`).
 const NODE_TMIN: f32 = 1e-4;
-
-/// Iterates the set bits of `m`, lowest first.
-#[inline]
-fn bits(mut m: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (m != 0).then(|| {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            i
-        })
-    })
-}
 
 /// For each of a node's eight children, the rays of `active` whose slab test reaches its box,
 /// as a bit mask per child, from each ray's 1/direction and direction signs (`rays`) and the
