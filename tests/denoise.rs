@@ -71,11 +71,14 @@ fn receptive_field_reaches_at_least_15_pixels_and_no_further_than_the_margin() {
     let a = m.run_planes(&planes, w, h);
     planes[80 * w + 80] += 3.0; // colour channel 0 at (80, 80)
     let b = m.run_planes(&planes, w, h);
+    // Influence is a change above rounding: the Winograd kernel's 4×4 output tiles share
+    // rounding across their pixels, which moves values a few pixels past the receptive field
+    // by about one ulp (9e-8 here), while real influence at 38 px is still above 1e-5.
     let mut reach = 0usize;
     for ch in 0..3 {
         for y in 0..h {
             for x in 0..w {
-                if a[ch * w * h + y * w + x] != b[ch * w * h + y * w + x] {
+                if (a[ch * w * h + y * w + x] - b[ch * w * h + y * w + x]).abs() > 1e-6 {
                     reach = reach.max(x.abs_diff(80).max(y.abs_diff(80)));
                 }
             }

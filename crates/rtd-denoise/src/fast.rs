@@ -11,11 +11,16 @@ use rayon::prelude::*;
 use crate::direct::DirectWeights;
 pub use crate::feature_map::{Map, Scratch};
 use crate::model::{DenoiserNet, InceptionBlock};
+use crate::winograd::WinogradWeights;
 
 /// Which convolution kernel the fast path runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
-    /// The AVX-512 direct convolution (only where [`crate::direct::available`]).
+    /// The AVX-512 direct convolution, with the undilated 3×3 convolutions by Winograd
+    /// F(4×4, 3×3) ([`crate::winograd`]; only where [`crate::direct::available`]).
+    Winograd,
+    /// The AVX-512 direct convolution for every convolution (only where
+    /// [`crate::direct::available`]).
     Direct,
     /// im2col + gemm, on any CPU.
     Gemm,
@@ -25,7 +30,7 @@ impl Kernel {
     /// The fastest kernel this CPU runs.
     pub fn best() -> Self {
         if crate::direct::available() {
-            Kernel::Direct
+            Kernel::Winograd
         } else {
             Kernel::Gemm
         }
@@ -41,8 +46,18 @@ struct Conv {
     dil: usize,
     weights: Vec<f32>,
     bias: Vec<f32>,
-    /// The same weights for the direct kernel, when it runs.
-    direct: Option<DirectWeights>,
+    /// The same weights as the kernel that runs them reads them.
+    prepared: Prepared,
+}
+
+/// A convolution's weights prepared for the kernel that runs it.
+enum Prepared {
+    /// im2col + gemm, which reads [`Conv`]'s own weights.
+    Gemm,
+    /// The AVX-512 direct kernel's layout.
+    Direct(DirectWeights),
+    /// The Winograd kernel's transformed weights.
+    Winograd(WinogradWeights),
 }
 
 thread_local! {
@@ -81,13 +96,25 @@ impl Conv {
             Some(b) => b.val().into_data().convert::<f32>().try_to_vec::<f32>().expect("f32 bias"),
             None => vec![0.0; cout],
         };
-        Conv { cin, cout, kh, kw, dil: conv.dilation[0], weights, bias, direct: None }
+        Conv { cin, cout, kh, kw, dil: conv.dilation[0], weights, bias, prepared: Prepared::Gemm }
     }
 
     /// Prepares the weights for `kernel`.
     fn for_kernel(mut self, kernel: Kernel) -> Self {
-        self.direct = (kernel == Kernel::Direct)
-            .then(|| DirectWeights::new(self.cin, self.cout, (self.kh, self.kw, self.dil), &self.weights, &self.bias));
+        let winograd = (self.kh, self.kw, self.dil) == (3, 3, 1);
+        self.prepared = match kernel {
+            Kernel::Gemm => Prepared::Gemm,
+            Kernel::Winograd if winograd => {
+                Prepared::Winograd(WinogradWeights::new(self.cin, self.cout, &self.weights, &self.bias))
+            }
+            Kernel::Winograd | Kernel::Direct => Prepared::Direct(DirectWeights::new(
+                self.cin,
+                self.cout,
+                (self.kh, self.kw, self.dil),
+                &self.weights,
+                &self.bias,
+            )),
+        };
         self
     }
 
@@ -103,14 +130,25 @@ impl Conv {
             let row = (a.cin + ci) * cout + a.cout;
             weights[row..row + b.cout].copy_from_slice(&b.weights[ci * b.cout..(ci + 1) * b.cout]);
         }
-        Conv { cin, cout, kh: 1, kw: 1, dil: 1, weights, bias: [a.bias.clone(), b.bias.clone()].concat(), direct: None }
+        Conv {
+            cin,
+            cout,
+            kh: 1,
+            kw: 1,
+            dil: 1,
+            weights,
+            bias: [a.bias.clone(), b.bias.clone()].concat(),
+            prepared: Prepared::Gemm,
+        }
     }
 
     /// Writes conv(x) (+ bias, optionally ReLU) into planes [offset, offset + cout) of `dst`,
     /// a map of the same size as `x` with `dst.c` planes.
     fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool) {
-        if let Some(direct) = &self.direct {
-            return direct.apply(x, dst, offset, relu, None);
+        match &self.prepared {
+            Prepared::Direct(direct) => return direct.apply(x, dst, offset, relu, None),
+            Prepared::Winograd(winograd) => return winograd.apply(x, dst, offset, relu),
+            Prepared::Gemm => {}
         }
         assert_eq!(x.c, self.cin);
         assert!(offset + self.cout <= dst.c && (dst.w, dst.h) == (x.w, x.h));
@@ -193,9 +231,9 @@ impl Conv {
     /// relu(conv(x)) + residual.
     fn run_residual(&self, x: &Map, residual: &Map, scratch: &mut Scratch) -> Map {
         let mut out = scratch.map(x.w, x.h, self.cout);
-        match &self.direct {
-            Some(direct) => direct.apply(x, &mut out, 0, true, Some(residual)),
-            None => {
+        match &self.prepared {
+            Prepared::Direct(direct) => direct.apply(x, &mut out, 0, true, Some(residual)),
+            Prepared::Winograd(_) | Prepared::Gemm => {
                 self.apply(x, &mut out, 0, true);
                 out.data.par_iter_mut().zip(residual.data.par_iter()).for_each(|(a, b)| *a += b);
             }
@@ -427,7 +465,7 @@ impl FastDecoder {
             dil: 1,
             weights: fuse.weights[rows.start * fuse.cout..rows.end * fuse.cout].to_vec(),
             bias: if bias { fuse.bias.clone() } else { vec![0.0; fuse.cout] },
-            direct: None,
+            prepared: Prepared::Gemm,
         };
         FastDecoder {
             fuse_coarse: split(0..coarse, false).for_kernel(kernel),
@@ -529,8 +567,11 @@ mod tests {
             let chw: Vec<f32> = (0..c * w * h).map(|i| (i * 7919 % 1000) as f32 / 500.0 - 1.0).collect();
             let reference = net.forward(Tensor::<4>::from_data(TensorData::new(chw.clone(), [1, c, h, w]), &device));
             let reference: Vec<f32> = reference.into_data().try_to_vec::<f32>().unwrap();
-            let kernels =
-                if crate::direct::available() { vec![Kernel::Gemm, Kernel::Direct] } else { vec![Kernel::Gemm] };
+            let kernels = if crate::direct::available() {
+                vec![Kernel::Gemm, Kernel::Direct, Kernel::Winograd]
+            } else {
+                vec![Kernel::Gemm]
+            };
             for kernel in kernels {
                 let map = Map { w, h, c, data: chw.clone() };
                 let fast = FastNet::with_kernel(&net, kernel).forward(&map, &mut Scratch::default());

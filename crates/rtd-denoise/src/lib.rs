@@ -13,6 +13,7 @@ pub mod filter;
 pub mod infer;
 pub mod model;
 pub mod planes;
+pub mod winograd;
 
 pub use encode::DenoiseInput;
 pub use infer::Denoiser;
