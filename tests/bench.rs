@@ -89,4 +89,13 @@ fn speed_report_holds_the_render_against_raw_traversal() {
     let [median] = figures("denoise s / Mpixel, warm (1 pass, 5 calls)")[..] else { panic!("{md}") };
     assert!((median - warm.median).abs() <= 5e-4, "{median} against {warm:?}\n{md}");
     assert_eq!(json["denoise_warm_s_per_mpixel"]["median"].as_f64(), Some(warm.median));
+    // Its rate: two FLOPs per multiply-accumulate of the shipped network, per pixel and pass.
+    let macs = model.config().macs_per_pixel();
+    let gflops = report.denoise_gflops().expect("measured");
+    assert!((gflops.median - 2.0 * macs / (warm.median * 1e3)).abs() <= 1e-9 * gflops.median, "{gflops:?}");
+    assert!(gflops.min <= gflops.median && gflops.median <= gflops.max, "{gflops:?}");
+    let label = format!("denoise GFLOP/s, warm (2 × {:.1}k MAC/px as direct convolution)", macs / 1e3);
+    let [shown] = figures(&label)[..] else { panic!("{md}") };
+    assert!((shown - gflops.median).abs() <= 5e-4, "{shown} against {gflops:?}\n{md}");
+    assert!(old.markdown().contains("| denoise GFLOP/s, warm | not measured |"), "{}", old.markdown());
 }

@@ -68,6 +68,10 @@ pub struct SpeedReport {
     pub denoise_warm_s_per_mpixel: Option<Spread>,
     /// The denoiser's self-ensemble passes.
     pub denoise_passes: usize,
+    /// The network's multiply-accumulates per pixel and pass as a direct convolution computes
+    /// them ([`rtd_denoise::DenoiserConfig::macs_per_pixel`]): the work a GFLOP/s figure counts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoise_macs_per_pixel: Option<f64>,
     /// Raw closest-hit traversal of camera rays, millions of rays per second (one measurement;
     /// None when not measured: a cancelled run, or no rays).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -128,6 +132,7 @@ pub fn run_speed(
         denoise_s_per_mpixel: Spread::of(den_t),
         denoise_warm_s_per_mpixel: warm,
         denoise_passes: denoiser.ensemble_passes(),
+        denoise_macs_per_pixel: Some(denoiser.config().macs_per_pixel()),
         raw_camera_mrays_per_s: raw.camera,
         raw_bounce_mrays_per_s: raw.bounce,
     })
@@ -159,6 +164,16 @@ impl SpeedReport {
         self.mrays_per_s.median / raw
     }
 
+    /// The warm denoiser's rate in GFLOP/s (two per multiply-accumulate of the network as a
+    /// direct convolution computes it, so that kernels doing fewer, as Winograd's do, show as
+    /// faster): median, and the range from the slowest call to the fastest.
+    pub fn denoise_gflops(&self) -> Option<Spread> {
+        let (warm, macs) = (self.denoise_warm_s_per_mpixel?, self.denoise_macs_per_pixel?);
+        // s per Mpixel → GFLOP/s: 2 · MACs/px · passes · 10⁶ px ÷ s ÷ 10⁹.
+        let rate = |s: f64| 2.0 * macs * self.denoise_passes as f64 / (s * 1e3);
+        Some(Spread { median: rate(warm.median), min: rate(warm.max), max: rate(warm.min) })
+    }
+
     /// One Markdown table row per figure, then a table of the raw traversal rates.
     pub fn markdown(&self) -> String {
         let row = |name: &str, s: &Spread| format!("| {name} | {:.3} | {:.3}–{:.3} |\n", s.median, s.min, s.max);
@@ -171,8 +186,14 @@ impl SpeedReport {
             Some(w) => row(&format!("denoise s / Mpixel, warm ({passes}, {WARM_DENOISE_RUNS} calls)"), w),
             None => format!("| denoise s / Mpixel, warm ({passes}) | not measured | – |\n"),
         };
+        let gflops = match (self.denoise_gflops(), self.denoise_macs_per_pixel) {
+            (Some(g), Some(macs)) => {
+                row(&format!("denoise GFLOP/s, warm (2 × {:.1}k MAC/px as direct convolution)", macs / 1e3), &g)
+            }
+            _ => "| denoise GFLOP/s, warm | not measured | – |\n".to_string(),
+        };
         format!(
-            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}{}\n\
+            "Speed on {} at {}×{} ({} spp renders, {} runs):\n\n| figure | median | min–max |\n|---|---|---|\n{}{}{}{}{}{}\n\
              Raw closest-hit traversal on the same scene (one measurement each):\n\n\
              | rays | M rays/s | render rays/s ÷ raw |\n|---|---|---|\n{}{}",
             self.scene,
@@ -185,6 +206,7 @@ impl SpeedReport {
             row("guide s / Mpixel", &self.guide_s_per_mpixel),
             row(&format!("denoise s / Mpixel, in the pipeline ({passes})"), &self.denoise_s_per_mpixel),
             warm,
+            gflops,
             raw("camera rays", self.raw_camera_mrays_per_s),
             raw("diffuse bounces from the camera hits", self.raw_bounce_mrays_per_s),
         )

@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use crate::feature_map::Map;
+use crate::feature_map::{Map, Rows};
 
 /// Output channels computed together (their weights broadcast, one register each per vector).
 pub(crate) const BLOCK: usize = 6;
@@ -72,32 +72,50 @@ impl DirectWeights {
     /// Writes act(conv(x) + bias) (+ `residual`, after the ReLU) into planes [offset, offset +
     /// cout) of `dst`, a map of x's size. `residual` holds `cout` planes of that size.
     pub(crate) fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool, residual: Option<&Map>) {
+        let to = Rows { of_x: 0..x.h, at: 0 };
+        self.apply_rows(x, to, dst, offset, relu, residual)
+    }
+
+    /// [`DirectWeights::apply`] for output rows `to.of_x` of x's grid only (reading the rows
+    /// around them that exist), stored from row `to.at` of `dst`, a map of x's width.
+    /// `residual`, if given, is on dst's grid.
+    pub(crate) fn apply_rows(
+        &self,
+        x: &Map,
+        to: Rows,
+        dst: &mut Map,
+        offset: usize,
+        relu: bool,
+        residual: Option<&Map>,
+    ) {
         assert!(available(), "the direct kernel needs AVX-512F");
         assert_eq!(x.c, self.cin);
-        assert!(offset + self.cout <= dst.c && (dst.w, dst.h) == (x.w, x.h));
+        assert!(offset + self.cout <= dst.c && dst.w == x.w && to.of_x.end <= x.h && to.at + to.of_x.len() <= dst.h);
         if let Some(r) = residual {
-            assert!(r.c == self.cout && (r.w, r.h) == (x.w, x.h));
+            assert!(r.c == self.cout && (r.w, r.h) == (dst.w, dst.h));
         }
-        let (w, h) = (x.w, x.h);
-        let n = w * h;
-        let out = dst.data[offset * n..(offset + self.cout) * n].as_mut_ptr() as usize;
-        // One task per image row; rows write disjoint pixels of every output plane.
-        (0..h).into_par_iter().for_each(|y| {
-            // SAFETY: AVX-512F is present (checked above), and each task writes only row y of
-            // the cout output planes, which lie inside `dst`.
+        let dn = dst.w * dst.h;
+        let out = dst.data[offset * dn..(offset + self.cout) * dn].as_mut_ptr() as usize;
+        // One task per output row; rows write disjoint pixels of every output plane.
+        to.of_x.clone().into_par_iter().for_each(|y| {
+            // SAFETY: AVX-512F is present (checked above), and each task writes only row
+            // y − start + at of the cout output planes, which lie inside `dst`.
             #[cfg(target_arch = "x86_64")]
             unsafe {
-                self.row(x, y, out as *mut f32, relu, residual)
+                let out_y = y - to.of_x.start + to.at;
+                let residual = residual.map(|r| r.data[out_y * x.w..].as_ptr());
+                self.row(x, y, ((out as *mut f32).add(out_y * x.w), dn), relu, residual)
             }
             #[cfg(not(target_arch = "x86_64"))]
             let _ = (y, out);
         });
     }
 
-    /// One output row of every block.
+    /// Row y (of x's grid) of every block: output channel co's row goes to `out.0 + co·out.1`,
+    /// plus the residual's row at `residual + co·out.1`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    unsafe fn row(&self, x: &Map, y: usize, out: *mut f32, relu: bool, residual: Option<&Map>) {
+    unsafe fn row(&self, x: &Map, y: usize, (out, dn): (*mut f32, usize), relu: bool, residual: Option<*const f32>) {
         use std::arch::x86_64::*;
         let (w, n) = (x.w, x.w * x.h);
         let taps = self.kh * self.kw;
@@ -161,11 +179,11 @@ impl DirectWeights {
                         if co >= self.cout {
                             break;
                         }
-                        let dst = out.add(co * n + y * w + x0);
+                        let dst = out.add(co * dn + x0);
                         for (k, a) in lanes.iter().enumerate() {
                             let mut value = if relu { _mm512_max_ps(*a, zero) } else { *a };
                             if let Some(res) = residual {
-                                let src = res.data.as_ptr().add(co * n + y * w).wrapping_add(x0 + 16 * k);
+                                let src = res.add(co * dn).wrapping_add(x0 + 16 * k);
                                 value = _mm512_add_ps(value, _mm512_maskz_loadu_ps(store[k], src));
                             }
                             _mm512_mask_storeu_ps(dst.wrapping_add(16 * k), store[k], value);
@@ -296,6 +314,30 @@ mod tests {
                 }
                 // The planes around the written ones are untouched.
                 assert!(dst.data[..n].iter().chain(&dst.data[(cout + 1) * n..]).all(|v| *v == 9.0));
+                // Rows [1, h − 1) alone, stored from row 2 of a taller map: the same values,
+                // and nothing else written.
+                let rows = if h > 2 { 1..h - 1 } else { 0..h };
+                let mut tall = Map { w, h: h + 3, c: cout, data: vec![7.0; cout * w * (h + 3)] };
+                // The residual, on the taller map's grid: row y of x's grid is row y + 2 − start.
+                let mut res_tall = Map { w, h: h + 3, c: cout, data: vec![0.0; cout * w * (h + 3)] };
+                for co in 0..cout {
+                    res_tall.data[(co * (h + 3) + 2 - rows.start) * w..][..n].copy_from_slice(&res.data[co * n..][..n]);
+                }
+                let residual = residual.map(|_| &res_tall);
+                conv.apply_rows(&x, Rows { of_x: rows.clone(), at: 2 }, &mut tall, 0, relu, residual);
+                for co in 0..cout {
+                    for y in 0..h + 3 {
+                        let got = &tall.data[(co * (h + 3) + y) * w..][..w];
+                        match (y >= 2).then(|| y - 2 + rows.start).filter(|sy| rows.contains(sy)) {
+                            Some(sy) => assert_eq!(
+                                got,
+                                &dst.data[(1 + co) * n + sy * w..][..w],
+                                "{cin}->{cout} {kh}x{kw} relu {relu} co {co} row {sy}"
+                            ),
+                            None => assert!(got.iter().all(|v| *v == 7.0), "row {y} of the taller map was written"),
+                        }
+                    }
+                }
             }
         }
     }

@@ -9,7 +9,7 @@ use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
 
 use crate::direct::DirectWeights;
-pub use crate::feature_map::{Map, Scratch};
+pub use crate::feature_map::{Map, Rows, Scratch};
 use crate::model::{DenoiserNet, InceptionBlock};
 use crate::winograd::WinogradWeights;
 
@@ -142,6 +142,25 @@ impl Conv {
         }
     }
 
+    /// [`Conv::apply`] for output rows `to.of_x` of x's grid only, stored from row `to.at` of
+    /// `dst`, a map of x's width.
+    fn apply_rows(&self, x: &Map, to: Rows, dst: &mut Map, offset: usize, relu: bool) {
+        match &self.prepared {
+            Prepared::Direct(direct) => direct.apply_rows(x, to, dst, offset, relu, None),
+            Prepared::Winograd(winograd) => winograd.apply_rows(x, to, dst, offset, relu),
+            Prepared::Gemm => {
+                // im2col + gemm computes whole maps: the rows wanted and those they read.
+                let reach = self.reach();
+                let (a, b) = (to.of_x.start.saturating_sub(reach), (to.of_x.end + reach).min(x.h));
+                let mut band = Map { w: x.w, h: b - a, c: x.c, data: vec![0.0; x.w * (b - a) * x.c] };
+                put_rows(x, a..b, &mut band, 0, 0);
+                let mut out = Map { w: x.w, h: b - a, c: self.cout, data: vec![0.0; x.w * (b - a) * self.cout] };
+                self.apply(&band, &mut out, 0, relu);
+                put_rows(&out, to.of_x.start - a..to.of_x.end - a, dst, offset, to.at);
+            }
+        }
+    }
+
     /// Writes conv(x) (+ bias, optionally ReLU) into planes [offset, offset + cout) of `dst`,
     /// a map of the same size as `x` with `dst.c` planes.
     fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool) {
@@ -228,17 +247,21 @@ impl Conv {
         out
     }
 
-    /// relu(conv(x)) + residual.
-    fn run_residual(&self, x: &Map, residual: &Map, scratch: &mut Scratch) -> Map {
-        let mut out = scratch.map(x.w, x.h, self.cout);
-        match &self.prepared {
-            Prepared::Direct(direct) => direct.apply(x, &mut out, 0, true, Some(residual)),
-            Prepared::Winograd(_) | Prepared::Gemm => {
-                self.apply(x, &mut out, 0, true);
-                out.data.par_iter_mut().zip(residual.data.par_iter()).for_each(|(a, b)| *a += b);
+    /// relu(conv(x)) (+ `residual`, on dst's grid) for rows `to.of_x` of x, stored from row
+    /// `to.at` of `dst`, a map of `cout` planes.
+    fn apply_rows_residual(&self, x: &Map, to: Rows, dst: &mut Map, residual: Option<&Map>) {
+        match (&self.prepared, residual) {
+            (Prepared::Direct(direct), _) => direct.apply_rows(x, to, dst, 0, true, residual),
+            (_, None) => self.apply_rows(x, to, dst, 0, true),
+            (_, Some(r)) => {
+                let (w, n, rows) = (dst.w, dst.w * dst.h, to.at..to.at + to.of_x.len());
+                self.apply_rows(x, to, dst, 0, true);
+                dst.data.par_chunks_mut(n).zip(r.data.par_chunks(n)).for_each(|(plane, res)| {
+                    let (plane, res) = (&mut plane[rows.start * w..rows.end * w], &res[rows.start * w..rows.end * w]);
+                    plane.iter_mut().zip(res).for_each(|(a, b)| *a += b);
+                });
             }
         }
-        out
     }
 }
 
@@ -270,53 +293,52 @@ fn gather_shifted(plane: &[f32], w: usize, p0: usize, dx: isize, dy: isize, dst:
     }
 }
 
-/// Output rows per band of [`FastBlock::forward_banded`].
+/// Output rows per band of [`FastBlock::forward`] and [`FastDecoder::forward`].
 const BAND: usize = 32;
 
-/// Rows `rows` of every plane of `x`, as a map of their own.
-fn rows_of(x: &Map, rows: std::ops::Range<usize>, scratch: &mut Scratch) -> Map {
-    let (w, h) = (x.w, x.h);
-    let mut band = scratch.map(w, rows.len(), x.c);
-    band.data.par_chunks_mut(w * rows.len()).enumerate().for_each(|(c, plane)| {
-        plane.copy_from_slice(&x.data[(c * h + rows.start) * w..][..w * rows.len()]);
-    });
-    band
-}
-
-/// Copies rows `rows` of every plane of `src` into `dst` from row `at` on.
-fn put_rows(src: &Map, rows: std::ops::Range<usize>, dst: &mut Map, at: usize) {
+/// Copies rows `rows` of every plane of `src` into planes [offset, offset + src.c) of `dst`,
+/// from row `at` on.
+fn put_rows(src: &Map, rows: std::ops::Range<usize>, dst: &mut Map, offset: usize, at: usize) {
     let (w, sh, dh) = (src.w, src.h, dst.h);
-    dst.data.par_chunks_mut(w * dh).enumerate().for_each(|(c, plane)| {
+    let planes = &mut dst.data[offset * w * dh..(offset + src.c) * w * dh];
+    planes.par_chunks_mut(w * dh).enumerate().for_each(|(c, plane)| {
         plane[at * w..][..w * rows.len()].copy_from_slice(&src.data[(c * sh + rows.start) * w..][..w * rows.len()]);
     });
 }
 
-/// 3×3 stride-1 max and min pooling over the valid neighbours, separably per plane: planes
-/// [0, c) hold the max, [c, 2c) the min.
-fn pool3_max_min(x: &Map, scratch: &mut Scratch) -> Map {
-    let mut out = scratch.map(x.w, x.h, 2 * x.c);
-    let (w, h, n) = (x.w, x.h, x.w * x.h);
-    let (maxes, mins) = out.data.split_at_mut(x.c * n);
-    let tasks = maxes.par_chunks_mut(n).map(|p| (p, true)).chain(mins.par_chunks_mut(n).map(|p| (p, false)));
+/// 3×3 stride-1 max and min pooling over the valid neighbours, separably per plane, of rows
+/// `rows` of x: planes [0, c) of the result hold the max, [c, 2c) the min, one row per row.
+fn pool3_max_min(x: &Map, rows: std::ops::Range<usize>, scratch: &mut Scratch) -> Map {
+    let mut out = scratch.map(x.w, rows.len(), 2 * x.c);
+    let (w, h, n, on) = (x.w, x.h, x.w * x.h, x.w * rows.len());
+    let (maxes, mins) = out.data.split_at_mut(x.c * on);
+    let tasks = maxes.par_chunks_mut(on).map(|p| (p, true)).chain(mins.par_chunks_mut(on).map(|p| (p, false)));
     tasks.enumerate().for_each(|(task, (dst, is_max))| {
         let plane = &x.data[(task % x.c) * n..][..n];
         // Plain comparisons (inputs are finite), which map to single vector instructions.
         if is_max {
-            pool3(plane, w, h, dst, |a, b| if a > b { a } else { b });
+            pool3(plane, (w, h), rows.clone(), dst, |a, b| if a > b { a } else { b });
         } else {
-            pool3(plane, w, h, dst, |a, b| if a < b { a } else { b });
+            pool3(plane, (w, h), rows.clone(), dst, |a, b| if a < b { a } else { b });
         }
     });
     out
 }
 
-/// One plane's 3×3 extreme under `pick` (max or min; generic, so each is compiled to vector
-/// code), over the valid neighbours: the clamped row indices and the shorter edge windows
-/// leave out what lies outside the plane.
+/// Rows `rows` of one plane's 3×3 extreme under `pick` (max or min; generic, so each is
+/// compiled to vector code), over the valid neighbours: the clamped row indices and the
+/// shorter edge windows leave out what lies outside the plane.
 #[inline(always)]
-fn pool3(plane: &[f32], w: usize, h: usize, dst: &mut [f32], pick: impl Fn(f32, f32) -> f32 + Copy) {
+fn pool3(
+    plane: &[f32],
+    (w, h): (usize, usize),
+    rows: std::ops::Range<usize>,
+    dst: &mut [f32],
+    pick: impl Fn(f32, f32) -> f32 + Copy,
+) {
     let mut line = vec![0.0f32; w];
-    for y in 0..h {
+    let y0 = rows.start;
+    for y in rows {
         // Vertical extreme over rows y−1..=y+1 (the row itself stands in for a missing one).
         let mid = &plane[y * w..][..w];
         let up = &plane[y.saturating_sub(1) * w..][..w];
@@ -325,7 +347,7 @@ fn pool3(plane: &[f32], w: usize, h: usize, dst: &mut [f32], pick: impl Fn(f32, 
             *l = pick(pick(*m, *u), *d);
         }
         // Horizontal extreme over columns x−1..=x+1.
-        let row = &mut dst[y * w..][..w];
+        let row = &mut dst[(y - y0) * w..][..w];
         if w == 1 {
             row[0] = line[0];
             continue;
@@ -354,15 +376,16 @@ fn downsample(x: &Map, scratch: &mut Scratch) -> Map {
     out
 }
 
-/// `dst += nearest 2× upsampling of x` (`dst` twice the size, same channels).
-fn add_upsampled(x: &Map, dst: &mut Map) {
+/// `dst = relu(dst + nearest 2× upsampling of x)`, where `dst` holds rows [y0, y0 + dst.h) of
+/// a map twice x's size (same channels).
+fn add_upsampled_relu(x: &Map, dst: &mut Map, y0: usize) {
     let n = dst.w * dst.h;
     dst.data.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
         let src = &x.data[c * x.w * x.h..][..x.w * x.h];
         for (y, row) in plane.chunks_exact_mut(dst.w).enumerate() {
-            let s = &src[(y / 2) * x.w..][..x.w];
+            let s = &src[((y0 + y) / 2) * x.w..][..x.w];
             for (px, d) in row.iter_mut().enumerate() {
-                *d += s[px / 2];
+                *d = (*d + s[px / 2]).max(0.0);
             }
         }
     });
@@ -381,30 +404,14 @@ struct FastBlock {
 }
 
 impl FastBlock {
-    /// How many rows above and below an output row the block reads: its furthest vertical tap,
-    /// and the pooling's one row.
-    fn reach(&self) -> usize {
-        [self.three.reach(), self.dilated.reach(), self.prong_v.reach(), 1].into_iter().max().unwrap_or(1)
-    }
-
-    /// [`FastBlock::forward`] band by band: each band of [`BAND`] output rows is computed from
-    /// its rows of `x` plus [`FastBlock::reach`] more on either side, so that the block's
-    /// intermediate maps (the concatenation, the pooled planes) stay in cache instead of
-    /// streaming whole images through memory.
-    fn forward_banded(&self, x: &Map, scratch: &mut Scratch) -> Map {
-        let reach = self.reach();
-        if x.h <= BAND + 2 * reach {
-            return self.forward(x, scratch);
-        }
+    /// The block, band by band of [`BAND`] output rows: each band's branch outputs (the
+    /// concatenation, the pooled planes) exist only for that band, so they stay in cache
+    /// instead of streaming whole images through memory. Every convolution reads `x` in place.
+    fn forward(&self, x: &Map, scratch: &mut Scratch) -> Map {
         let mut out = scratch.map(x.w, x.h, self.mix.cout);
         for y0 in (0..x.h).step_by(BAND) {
-            let y1 = (y0 + BAND).min(x.h);
-            let (a, b) = (y0.saturating_sub(reach), (y1 + reach).min(x.h));
-            let band = rows_of(x, a..b, scratch);
-            let y = self.forward(&band, scratch);
-            scratch.recycle(band);
-            put_rows(&y, y0 - a..y1 - a, &mut out, y0);
-            scratch.recycle(y);
+            let band = y0..(y0 + BAND).min(x.h);
+            self.band(x, band, &mut out, scratch);
         }
         out
     }
@@ -423,24 +430,32 @@ impl FastBlock {
         }
     }
 
-    fn forward(&self, x: &Map, scratch: &mut Scratch) -> Map {
-        // Branches write ReLU'd outputs into their planes of the concatenation.
-        let mut cat = scratch.map(x.w, x.h, self.mix.cin);
+    /// Rows `rows` of the block's output, into the same rows of `out`.
+    fn band(&self, x: &Map, rows: std::ops::Range<usize>, out: &mut Map, scratch: &mut Scratch) {
+        // Branches write ReLU'd outputs into their planes of the band's concatenation.
+        let (w, len) = (x.w, rows.len());
+        let here = Rows { of_x: rows.clone(), at: 0 };
+        let mut cat = scratch.map(w, len, self.mix.cin);
         let mut off = 0;
         for conv in [&self.one, &self.three, &self.dilated] {
-            conv.apply(x, &mut cat, off, true);
+            conv.apply_rows(x, here.clone(), &mut cat, off, true);
             off += conv.cout;
         }
-        let prong = self.prong_h.run(x, true, scratch);
-        self.prong_v.apply(&prong, &mut cat, off, true);
+        // The vertical prong reads the horizontal one's rows around the band.
+        let reach = self.prong_v.reach();
+        let around = rows.start.saturating_sub(reach)..(rows.end + reach).min(x.h);
+        let mut prong = scratch.map(w, around.len(), self.prong_h.cout);
+        self.prong_h.apply_rows(x, Rows { of_x: around.clone(), at: 0 }, &mut prong, 0, true);
+        let inside = rows.start - around.start..rows.end - around.start;
+        self.prong_v.apply_rows(&prong, Rows { of_x: inside, at: 0 }, &mut cat, off, true);
         scratch.recycle(prong);
         off += self.prong_v.cout;
-        let pooled = pool3_max_min(x, scratch);
-        self.pool_proj.apply(&pooled, &mut cat, off, true);
+        let pooled = pool3_max_min(x, rows.clone(), scratch);
+        self.pool_proj.apply_rows(&pooled, Rows { of_x: 0..len, at: 0 }, &mut cat, off, true);
         scratch.recycle(pooled);
-        let y = if self.residual { self.mix.run_residual(&cat, x, scratch) } else { self.mix.run(&cat, true, scratch) };
+        let to = Rows { of_x: 0..len, at: rows.start };
+        self.mix.apply_rows_residual(&cat, to, out, self.residual.then_some(x));
         scratch.recycle(cat);
-        y
     }
 }
 
@@ -474,16 +489,35 @@ impl FastDecoder {
         }
     }
 
-    /// relu(refine(relu(fuse([up(coarse), skip])))).
-    fn forward(&self, coarse: &Map, skip: &Map, scratch: &mut Scratch) -> Map {
+    /// relu(refine(relu(fuse([up(coarse), skip])))), followed by `output` (without ReLU) if
+    /// given. Band by band of [`BAND`] rows: the fused map exists only for a band and the row
+    /// either side of it, and with `output` so does the refined one, so neither streams a whole
+    /// full-resolution map through memory.
+    fn forward(&self, coarse: &Map, skip: &Map, output: Option<&Conv>, scratch: &mut Scratch) -> Map {
         let low = self.fuse_coarse.run(coarse, false, scratch);
-        let mut fused = self.fuse_skip.run(skip, false, scratch);
-        add_upsampled(&low, &mut fused);
+        let (w, h) = (skip.w, skip.h);
+        let mut out = scratch.map(w, h, output.unwrap_or(&self.refine).cout);
+        let reach = self.refine.reach();
+        for y0 in (0..h).step_by(BAND) {
+            let y1 = (y0 + BAND).min(h);
+            let (a, b) = (y0.saturating_sub(reach), (y1 + reach).min(h));
+            let mut fused = scratch.map(w, b - a, self.fuse_skip.cout);
+            self.fuse_skip.apply_rows(skip, Rows { of_x: a..b, at: 0 }, &mut fused, 0, false);
+            add_upsampled_relu(&low, &mut fused, a);
+            let band = Rows { of_x: y0 - a..y1 - a, at: y0 };
+            match output {
+                None => self.refine.apply_rows(&fused, band, &mut out, 0, true),
+                Some(conv) => {
+                    let mut refined = scratch.map(w, y1 - y0, self.refine.cout);
+                    self.refine.apply_rows(&fused, Rows { at: 0, ..band }, &mut refined, 0, true);
+                    conv.apply_rows(&refined, Rows { of_x: 0..y1 - y0, at: y0 }, &mut out, 0, false);
+                    scratch.recycle(refined);
+                }
+            }
+            scratch.recycle(fused);
+        }
         scratch.recycle(low);
-        fused.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
-        let y = self.refine.run(&fused, true, scratch);
-        scratch.recycle(fused);
-        y
+        out
     }
 }
 
@@ -524,22 +558,26 @@ impl FastNet {
                 let down = downsample(&y, scratch);
                 skips.push(std::mem::replace(&mut y, down));
             }
-            let next = enc.forward_banded(&y, scratch);
+            let next = enc.forward(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
         }
         for b in &self.bottleneck {
-            let next = b.forward_banded(&y, scratch);
+            let next = b.forward(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
         }
-        for dec in self.decoders.iter().rev() {
+        if self.decoders.is_empty() {
+            let out = self.output.run(&y, false, scratch);
+            scratch.recycle(y);
+            return out;
+        }
+        // The finest decoder level also runs the output convolution, band by band.
+        for (l, dec) in self.decoders.iter().enumerate().rev() {
             let skip = skips.pop().expect("one skip per decoder level");
-            let next = dec.forward(&y, &skip, scratch);
+            let next = dec.forward(&y, &skip, (l == 0).then_some(&self.output), scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
             scratch.recycle(skip);
         }
-        let out = self.output.run(&y, false, scratch);
-        scratch.recycle(y);
-        out
+        y
     }
 }
 

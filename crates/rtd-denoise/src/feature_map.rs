@@ -40,3 +40,13 @@ impl Scratch {
         self.free.push(m.data);
     }
 }
+
+/// Which output rows a convolution computes and where they go: rows `of_x` of its input's grid
+/// (each read from the input rows around it), stored from row `at` of the destination.
+#[derive(Clone, Debug)]
+pub struct Rows {
+    /// Output rows, in the input's row numbers.
+    pub of_x: std::ops::Range<usize>,
+    /// The destination row of the first.
+    pub at: usize,
+}

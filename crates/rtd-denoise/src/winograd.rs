@@ -18,7 +18,7 @@
 use rayon::prelude::*;
 
 use crate::direct::{available, BLOCK};
-use crate::feature_map::Map;
+use crate::feature_map::{Map, Rows};
 
 /// Output pixels along each side of a tile.
 const OUT: usize = 4;
@@ -87,35 +87,50 @@ impl WinogradWeights {
     /// Writes act(conv(x) + bias) into planes [offset, offset + cout) of `dst`, a map of x's
     /// size (zero padding outside x).
     pub(crate) fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool) {
+        self.apply_rows(x, Rows { of_x: 0..x.h, at: 0 }, dst, offset, relu)
+    }
+
+    /// [`WinogradWeights::apply`] for output rows `to.of_x` of x's grid only (tiles start at
+    /// its first), stored from row `to.at` of `dst`, a map of x's width.
+    pub(crate) fn apply_rows(&self, x: &Map, to: Rows, dst: &mut Map, offset: usize, relu: bool) {
         assert!(available(), "the Winograd kernel needs AVX-512F");
         assert_eq!(x.c, self.cin);
-        assert!(offset + self.cout <= dst.c && (dst.w, dst.h) == (x.w, x.h));
-        let n = x.w * x.h;
-        let out = dst.data[offset * n..(offset + self.cout) * n].as_mut_ptr() as usize;
+        assert!(offset + self.cout <= dst.c && dst.w == x.w && to.of_x.end <= x.h && to.at + to.of_x.len() <= dst.h);
+        let dn = dst.w * dst.h;
+        let out = dst.data[offset * dn..(offset + self.cout) * dn].as_mut_ptr() as usize;
         // One task per batch of tiles (up to BATCH of a row of tiles); tasks write disjoint
         // pixels of every output plane.
         let batches = x.w.div_ceil(OUT).div_ceil(BATCH);
-        (0..x.h.div_ceil(OUT) * batches).into_par_iter().for_each(|task| {
+        (0..to.of_x.len().div_ceil(OUT) * batches).into_par_iter().for_each(|task| {
             // SAFETY: AVX-512F is present (checked above), and each task writes only its tiles'
-            // pixels inside the map, of the cout output planes, which lie inside `dst`.
+            // pixels inside rows [at, at + len) of the cout output planes, which lie in `dst`.
             #[cfg(target_arch = "x86_64")]
             unsafe {
-                self.batch(x, (task / batches, task % batches * BATCH), out as *mut f32, relu)
+                let planes = Target {
+                    plane: (out as *mut f32).add(to.at * x.w),
+                    plane_len: dn,
+                    w: x.w,
+                    h: to.of_x.len(),
+                    x: 0,
+                    y: 0,
+                };
+                self.batch(x, (to.of_x.start, task / batches, task % batches * BATCH), planes, relu)
             }
             #[cfg(not(target_arch = "x86_64"))]
             let _ = (task, out);
         });
     }
 
-    /// Every output channel of tiles [t0, t0 + BATCH) ∩ the row's tiles, of row of tiles `ty`:
-    /// output rows [4·ty, 4·ty + 4), columns [4·t0, 4·t0 + 4·BATCH), inside the map.
+    /// Every output channel of tiles [t0, t0 + BATCH) ∩ the row's tiles, of row of tiles `ty`
+    /// counted from x's row `y0`: output rows [y0 + 4·ty, y0 + 4·ty + 4), columns [4·t0,
+    /// 4·t0 + 4·BATCH), those inside `planes` (whose row 0 is x's row y0).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    unsafe fn batch(&self, x: &Map, (ty, t0): (usize, usize), out: *mut f32, relu: bool) {
+    unsafe fn batch(&self, x: &Map, (y0, ty, t0): (usize, usize, usize), planes: Target, relu: bool) {
         let vectors = (x.w.div_ceil(OUT) - t0).div_ceil(LANES).min(VECTORS);
         BUFFERS.with(|cell| {
             let buffers = &mut *cell.borrow_mut();
-            let stride = fill_panel(x, (ty, t0), vectors, &mut buffers.panel);
+            let stride = fill_panel(x, (y0 + OUT * ty, t0), vectors, &mut buffers.panel);
             buffers.transformed.resize(XI * self.cin * BATCH, 0.0);
             buffers.products.resize(XI * BLOCK * BATCH, 0.0);
             let (panel, v, m) =
@@ -137,8 +152,8 @@ impl WinogradWeights {
                 for r in 0..BLOCK.min(self.cout - block * BLOCK) {
                     let co = block * BLOCK + r;
                     for k in 0..vectors {
-                        let px = OUT * (t0 + LANES * k);
-                        let target = Target { plane: out.add(co * x.w * x.h), w: x.w, h: x.h, x: px, y: OUT * ty };
+                        let plane = planes.plane.add(co * planes.plane_len);
+                        let target = Target { plane, x: OUT * (t0 + LANES * k), y: OUT * ty, ..planes };
                         output_transform(m.add(r * BATCH + LANES * k), BLOCK * BATCH, self.bias[co], relu, target);
                     }
                 }
@@ -189,11 +204,12 @@ thread_local! {
     static BUFFERS: std::cell::RefCell<Buffers> = std::cell::RefCell::new(Buffers::default());
 }
 
-/// Copies the input pixels that `vectors` vectors of tiles from tile (t0, ty) read into
-/// `panel`: for every channel, the six rows [4·ty − 1, 4·ty + 5) and the columns from
-/// 4·t0 − 1 (panel column c is image column 4·t0 + c − 1) through one vector of lookahead
-/// past the last tile, zero outside the image. Returns the panel's row stride.
-fn fill_panel(x: &Map, (ty, t0): (usize, usize), vectors: usize, panel: &mut Vec<f32>) -> usize {
+/// Copies the input pixels that `vectors` vectors of tiles from tile t0 of the row of tiles
+/// whose top output row is `y` read into `panel`: for every channel, the six rows [y − 1,
+/// y + 5) and the columns from 4·t0 − 1 (panel column c is image column 4·t0 + c − 1) through
+/// one vector of lookahead past the last tile, zero outside the image. Returns the panel's
+/// row stride.
+fn fill_panel(x: &Map, (y, t0): (usize, usize), vectors: usize, panel: &mut Vec<f32>) -> usize {
     let (w, h) = (x.w, x.h);
     let stride = OUT * LANES * vectors + LANES;
     panel.resize(x.c * IN * stride, 0.0);
@@ -203,7 +219,7 @@ fn fill_panel(x: &Map, (ty, t0): (usize, usize), vectors: usize, panel: &mut Vec
     for ci in 0..x.c {
         for r in 0..IN {
             let dst = &mut panel[(ci * IN + r) * stride..][..stride];
-            match (OUT * ty + r).checked_sub(1).filter(|&sy| sy < h) {
+            match (y + r).checked_sub(1).filter(|&sy| sy < h) {
                 Some(sy) => {
                     dst[..at].fill(0.0);
                     dst[at..at + c1 - c0].copy_from_slice(&x.data[(ci * h + sy) * w + c0..][..c1 - c0]);
@@ -307,8 +323,11 @@ unsafe fn input_transform(src: *const f32, stride: usize, dst: *mut f32, xi_stri
 }
 
 /// Where one vector of tiles' outputs go: a plane of a w×h map, from pixel (x, y).
+#[derive(Clone, Copy)]
 struct Target {
     plane: *mut f32,
+    /// Values from one plane to the next (for a first plane; one vector's target uses `plane`).
+    plane_len: usize,
     w: usize,
     h: usize,
     x: usize,
@@ -405,6 +424,29 @@ mod tests {
                 }
                 // The planes around the written ones are untouched.
                 assert!(dst.data[..n].iter().chain(&dst.data[(cout + 1) * n..]).all(|v| *v == 9.0));
+                // Rows [1, h − 1) alone, stored from row 2 of a taller map, are the same rows
+                // (tiles starting one row lower round differently), and nothing else is written.
+                let rows = if h > 2 { 1..h - 1 } else { 0..h };
+                let mut tall = Map { w, h: h + 3, c: cout, data: vec![7.0; cout * w * (h + 3)] };
+                conv.apply_rows(&x, Rows { of_x: rows.clone(), at: 2 }, &mut tall, 0, relu);
+                for co in 0..cout {
+                    for y in 0..h + 3 {
+                        for px in 0..w {
+                            let got = tall.data[(co * (h + 3) + y) * w + px];
+                            let source = (y >= 2).then(|| y - 2 + rows.start).filter(|sy| rows.contains(sy));
+                            match source {
+                                Some(sy) => {
+                                    let want = dst.data[(1 + co) * n + sy * w + px];
+                                    assert!(
+                                        (got - want).abs() < 1e-4 * (1.0 + want.abs()),
+                                        "row {sy}: {got} vs {want}"
+                                    );
+                                }
+                                None => assert_eq!(got, 7.0, "row {y} of the taller map was written"),
+                            }
+                        }
+                    }
+                }
             }
         }
     }
