@@ -8,6 +8,7 @@
 use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
 
+use crate::column_winograd::ColumnWinogradWeights;
 use crate::direct::DirectWeights;
 pub use crate::feature_map::{Map, Rows, Scratch};
 use crate::model::{DenoiserNet, InceptionBlock};
@@ -17,7 +18,8 @@ use crate::winograd::WinogradWeights;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
     /// The AVX-512 direct convolution, with the undilated 3×3 convolutions by Winograd
-    /// F(4×4, 3×3) ([`crate::winograd`]; only where [`crate::direct::available`]).
+    /// F(4×4, 3×3) ([`crate::winograd`]) and the dilated ones by Winograd F(4, 3) down the
+    /// columns ([`crate::column_winograd`]; only where [`crate::direct::available`]).
     Winograd,
     /// The AVX-512 direct convolution for every convolution (only where
     /// [`crate::direct::available`]).
@@ -58,6 +60,8 @@ enum Prepared {
     Direct(DirectWeights),
     /// The Winograd kernel's transformed weights.
     Winograd(WinogradWeights),
+    /// The column Winograd kernel's transformed weights (dilated 3×3).
+    ColumnWinograd(ColumnWinogradWeights),
 }
 
 thread_local! {
@@ -101,12 +105,19 @@ impl Conv {
 
     /// Prepares the weights for `kernel`.
     fn for_kernel(mut self, kernel: Kernel) -> Self {
-        let winograd = (self.kh, self.kw, self.dil) == (3, 3, 1);
+        let three = (self.kh, self.kw) == (3, 3);
         self.prepared = match kernel {
             Kernel::Gemm => Prepared::Gemm,
-            Kernel::Winograd if winograd => {
+            Kernel::Winograd if three && self.dil == 1 => {
                 Prepared::Winograd(WinogradWeights::new(self.cin, self.cout, &self.weights, &self.bias))
             }
+            Kernel::Winograd if three => Prepared::ColumnWinograd(ColumnWinogradWeights::new(
+                self.cin,
+                self.cout,
+                self.dil,
+                &self.weights,
+                &self.bias,
+            )),
             Kernel::Winograd | Kernel::Direct => Prepared::Direct(DirectWeights::new(
                 self.cin,
                 self.cout,
@@ -148,6 +159,7 @@ impl Conv {
         match &self.prepared {
             Prepared::Direct(direct) => direct.apply_rows(x, to, dst, offset, relu, None),
             Prepared::Winograd(winograd) => winograd.apply_rows(x, to, dst, offset, relu),
+            Prepared::ColumnWinograd(winograd) => winograd.apply_rows(x, to, dst, offset, relu),
             Prepared::Gemm => {
                 // im2col + gemm computes whole maps: the rows wanted and those they read.
                 let reach = self.reach();
@@ -167,6 +179,9 @@ impl Conv {
         match &self.prepared {
             Prepared::Direct(direct) => return direct.apply(x, dst, offset, relu, None),
             Prepared::Winograd(winograd) => return winograd.apply(x, dst, offset, relu),
+            Prepared::ColumnWinograd(winograd) => {
+                return winograd.apply_rows(x, Rows { of_x: 0..x.h, at: 0 }, dst, offset, relu)
+            }
             Prepared::Gemm => {}
         }
         assert_eq!(x.c, self.cin);

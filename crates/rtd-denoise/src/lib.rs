@@ -5,6 +5,7 @@
 
 #![warn(missing_docs)]
 
+pub mod column_winograd;
 pub mod direct;
 pub mod encode;
 pub mod fast;

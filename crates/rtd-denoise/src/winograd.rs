@@ -21,9 +21,9 @@ use crate::direct::{available, BLOCK};
 use crate::feature_map::{Map, Rows};
 
 /// Output pixels along each side of a tile.
-const OUT: usize = 4;
+pub(crate) const OUT: usize = 4;
 /// Input pixels along each side of a tile: the outputs plus the filter's reach either side.
-const IN: usize = OUT + 2;
+pub(crate) const IN: usize = OUT + 2;
 /// Values of a tile in the transform domain.
 const XI: usize = IN * IN;
 /// Tiles per vector.
@@ -34,7 +34,7 @@ const VECTORS: usize = 4;
 const BATCH: usize = LANES * VECTORS;
 
 /// G, the 6×3 filter transform for the interpolation points 0, ±1, ±2 and ∞.
-const G: [[f64; 3]; IN] = [
+pub(crate) const G: [[f64; 3]; IN] = [
     [1.0 / 4.0, 0.0, 0.0],
     [-1.0 / 6.0, -1.0 / 6.0, -1.0 / 6.0],
     [-1.0 / 6.0, 1.0 / 6.0, -1.0 / 6.0],
@@ -256,7 +256,7 @@ fn transpose4(a: [std::arch::x86_64::__m512; 4]) -> [std::arch::x86_64::__m512; 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-fn input_1d(d: [std::arch::x86_64::__m512; IN]) -> [std::arch::x86_64::__m512; IN] {
+pub(crate) fn input_1d(d: [std::arch::x86_64::__m512; IN]) -> [std::arch::x86_64::__m512; IN] {
     use std::arch::x86_64::*;
     let (four, neg_four, neg_five, two) =
         (_mm512_set1_ps(4.0), _mm512_set1_ps(-4.0), _mm512_set1_ps(-5.0), _mm512_set1_ps(2.0));
@@ -280,7 +280,7 @@ fn input_1d(d: [std::arch::x86_64::__m512; IN]) -> [std::arch::x86_64::__m512; I
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-fn output_1d(m: [std::arch::x86_64::__m512; IN]) -> [std::arch::x86_64::__m512; OUT] {
+pub(crate) fn output_1d(m: [std::arch::x86_64::__m512; IN]) -> [std::arch::x86_64::__m512; OUT] {
     use std::arch::x86_64::*;
     // Rows of Aᵀ: (1, 1, 1, 1, 1, 0), (0, 1, −1, 2, −2, 0), (0, 1, 1, 4, 4, 0), (0, 1, −1, 8, −8, 1).
     let (a, b) = (_mm512_add_ps(m[1], m[2]), _mm512_sub_ps(m[1], m[2]));
