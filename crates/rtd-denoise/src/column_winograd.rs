@@ -217,7 +217,10 @@ mod tests {
             eprintln!("no AVX-512F here: the column Winograd kernel is not used on this CPU");
             return;
         }
-        for (cin, cout, dil, w, h) in [(5, 7, 2, 37, 19), (24, 6, 2, 70, 13), (6, 13, 4, 130, 21), (3, 2, 4, 5, 3)] {
+        // Vectors per row segment: 3; 4 + 1; 4 + 4 + 1; 1; 4 + 2.
+        for (cin, cout, dil, w, h) in
+            [(5, 7, 2, 37, 19), (24, 6, 2, 70, 13), (6, 13, 4, 130, 21), (3, 2, 4, 5, 3), (4, 3, 2, 90, 9)]
+        {
             let n = w * h;
             let value = |i: usize, m: usize| ((i * 7919 + m) % 1009) as f32 / 500.0 - 1.0;
             let rows: Vec<f32> = (0..9 * cin * cout).map(|i| value(i, 1)).collect();

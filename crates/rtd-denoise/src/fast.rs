@@ -1,9 +1,10 @@
 //! A fast inference path for [`DenoiserNet`]: the same function evaluated on planar (CHW)
 //! feature maps, with branch outputs written straight into their planes of the concatenation.
-//! Convolutions run on the AVX-512 direct kernel ([`crate::direct`]) where the CPU has it, else
-//! as im2col + the `gemm` crate, threaded over pixel chunks. Planar maps put pixels, not
+//! Where the CPU has AVX-512F, 3×3 convolutions run as Winograd ([`crate::winograd`],
+//! [`crate::column_winograd`]) and the rest on the direct kernel ([`crate::direct`]); elsewhere
+//! all run as im2col + the `gemm` crate, threaded over pixel chunks. Planar maps put pixels, not
 //! channels, along the vector lanes, so the narrow (6- and 12-channel) branch convolutions
-//! fill them. A test holds both kernels to burn's output.
+//! fill them. A test holds every [`Kernel`] to burn's output.
 
 use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
@@ -12,6 +13,7 @@ use crate::column_winograd::ColumnWinogradWeights;
 use crate::direct::DirectWeights;
 pub use crate::feature_map::{Map, Rows, Scratch};
 use crate::model::{DenoiserNet, InceptionBlock};
+use crate::pooling::{add_upsampled_relu, downsample, pool3_max_min};
 use crate::winograd::WinogradWeights;
 
 /// Which convolution kernel the fast path runs.
@@ -65,6 +67,8 @@ enum Prepared {
 }
 
 thread_local! {
+    /// The band maps of [`Conv::apply_rows`] on the gemm path, reused across bands and layers.
+    static BAND_MAPS: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
     /// Each worker's im2col buffer, reused across chunks and layers.
     static COL: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
@@ -161,14 +165,22 @@ impl Conv {
             Prepared::Winograd(winograd) => winograd.apply_rows(x, to, dst, offset, relu),
             Prepared::ColumnWinograd(winograd) => winograd.apply_rows(x, to, dst, offset, relu),
             Prepared::Gemm => {
-                // im2col + gemm computes whole maps: the rows wanted and those they read.
+                // im2col + gemm computes whole maps: the rows wanted and those they read, in
+                // buffers this thread keeps (a fresh pool if a caller on it holds them).
                 let reach = self.reach();
                 let (a, b) = (to.of_x.start.saturating_sub(reach), (to.of_x.end + reach).min(x.h));
-                let mut band = Map { w: x.w, h: b - a, c: x.c, data: vec![0.0; x.w * (b - a) * x.c] };
-                put_rows(x, a..b, &mut band, 0, 0);
-                let mut out = Map { w: x.w, h: b - a, c: self.cout, data: vec![0.0; x.w * (b - a) * self.cout] };
-                self.apply(&band, &mut out, 0, relu);
-                put_rows(&out, to.of_x.start - a..to.of_x.end - a, dst, offset, to.at);
+                BAND_MAPS.with(|cell| {
+                    let mut own = Scratch::default();
+                    let mut kept = cell.try_borrow_mut();
+                    let scratch = kept.as_deref_mut().unwrap_or(&mut own);
+                    let mut band = scratch.map(x.w, b - a, x.c);
+                    put_rows(x, a..b, &mut band, 0, 0);
+                    let mut out = scratch.map(x.w, b - a, self.cout);
+                    self.apply(&band, &mut out, 0, relu);
+                    put_rows(&out, to.of_x.start - a..to.of_x.end - a, dst, offset, to.at);
+                    scratch.recycle(band);
+                    scratch.recycle(out);
+                });
             }
         }
     }
@@ -321,91 +333,6 @@ fn put_rows(src: &Map, rows: std::ops::Range<usize>, dst: &mut Map, offset: usiz
     });
 }
 
-/// 3×3 stride-1 max and min pooling over the valid neighbours, separably per plane, of rows
-/// `rows` of x: planes [0, c) of the result hold the max, [c, 2c) the min, one row per row.
-fn pool3_max_min(x: &Map, rows: std::ops::Range<usize>, scratch: &mut Scratch) -> Map {
-    let mut out = scratch.map(x.w, rows.len(), 2 * x.c);
-    let (w, h, n, on) = (x.w, x.h, x.w * x.h, x.w * rows.len());
-    let (maxes, mins) = out.data.split_at_mut(x.c * on);
-    let tasks = maxes.par_chunks_mut(on).map(|p| (p, true)).chain(mins.par_chunks_mut(on).map(|p| (p, false)));
-    tasks.enumerate().for_each(|(task, (dst, is_max))| {
-        let plane = &x.data[(task % x.c) * n..][..n];
-        // Plain comparisons (inputs are finite), which map to single vector instructions.
-        if is_max {
-            pool3(plane, (w, h), rows.clone(), dst, |a, b| if a > b { a } else { b });
-        } else {
-            pool3(plane, (w, h), rows.clone(), dst, |a, b| if a < b { a } else { b });
-        }
-    });
-    out
-}
-
-/// Rows `rows` of one plane's 3×3 extreme under `pick` (max or min; generic, so each is
-/// compiled to vector code), over the valid neighbours: the clamped row indices and the
-/// shorter edge windows leave out what lies outside the plane.
-#[inline(always)]
-fn pool3(
-    plane: &[f32],
-    (w, h): (usize, usize),
-    rows: std::ops::Range<usize>,
-    dst: &mut [f32],
-    pick: impl Fn(f32, f32) -> f32 + Copy,
-) {
-    let mut line = vec![0.0f32; w];
-    let y0 = rows.start;
-    for y in rows {
-        // Vertical extreme over rows y−1..=y+1 (the row itself stands in for a missing one).
-        let mid = &plane[y * w..][..w];
-        let up = &plane[y.saturating_sub(1) * w..][..w];
-        let down = &plane[(y + 1).min(h - 1) * w..][..w];
-        for (((l, m), u), d) in line.iter_mut().zip(mid).zip(up).zip(down) {
-            *l = pick(pick(*m, *u), *d);
-        }
-        // Horizontal extreme over columns x−1..=x+1.
-        let row = &mut dst[(y - y0) * w..][..w];
-        if w == 1 {
-            row[0] = line[0];
-            continue;
-        }
-        row[0] = pick(line[0], line[1]);
-        row[w - 1] = pick(line[w - 1], line[w - 2]);
-        for ((r, a), (b, c)) in row[1..w - 1].iter_mut().zip(&line[..w - 2]).zip(line[1..].iter().zip(&line[2..])) {
-            *r = pick(pick(*a, *b), *c);
-        }
-    }
-}
-
-/// 2×2 stride-2 max pooling (even sizes).
-fn downsample(x: &Map, scratch: &mut Scratch) -> Map {
-    let (w, h) = (x.w / 2, x.h / 2);
-    let mut out = scratch.map(w, h, x.c);
-    out.data.par_chunks_mut(w * h).enumerate().for_each(|(c, plane)| {
-        let src = &x.data[c * x.w * x.h..][..x.w * x.h];
-        for (y, row) in plane.chunks_exact_mut(w).enumerate() {
-            let (a, b) = (&src[2 * y * x.w..][..x.w], &src[(2 * y + 1) * x.w..][..x.w]);
-            for (px, v) in row.iter_mut().enumerate() {
-                *v = a[2 * px].max(a[2 * px + 1]).max(b[2 * px]).max(b[2 * px + 1]);
-            }
-        }
-    });
-    out
-}
-
-/// `dst = relu(dst + nearest 2× upsampling of x)`, where `dst` holds rows [y0, y0 + dst.h) of
-/// a map twice x's size (same channels).
-fn add_upsampled_relu(x: &Map, dst: &mut Map, y0: usize) {
-    let n = dst.w * dst.h;
-    dst.data.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
-        let src = &x.data[c * x.w * x.h..][..x.w * x.h];
-        for (y, row) in plane.chunks_exact_mut(dst.w).enumerate() {
-            let s = &src[((y0 + y) / 2) * x.w..][..x.w];
-            for (px, d) in row.iter_mut().enumerate() {
-                *d = (*d + s[px / 2]).max(0.0);
-            }
-        }
-    });
-}
-
 struct FastBlock {
     one: Conv,
     three: Conv,
@@ -421,7 +348,7 @@ struct FastBlock {
 impl FastBlock {
     /// The block, band by band of [`BAND`] output rows: each band's branch outputs (the
     /// concatenation, the pooled planes) exist only for that band, so they stay in cache
-    /// instead of streaming whole images through memory. Every convolution reads `x` in place.
+    /// instead of streaming whole images through memory. The branch convolutions read `x` in place.
     fn forward(&self, x: &Map, scratch: &mut Scratch) -> Map {
         let mut out = scratch.map(x.w, x.h, self.mix.cout);
         for y0 in (0..x.h).step_by(BAND) {
@@ -613,7 +540,8 @@ mod tests {
         ];
         // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row;
         // 24×100 runs the full-resolution blocks in bands, the last one short.
-        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100)] {
+        // 136×72 runs several Winograd vectors and batches per row, and bands at the coarse levels.
+        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100), (0, 136, 72)] {
             let config = &configs[i];
             let net = config.init(&device);
             let c = config.input_channels;

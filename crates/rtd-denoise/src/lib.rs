@@ -14,6 +14,7 @@ pub mod filter;
 pub mod infer;
 pub mod model;
 pub mod planes;
+pub mod pooling;
 pub mod winograd;
 
 pub use encode::DenoiseInput;

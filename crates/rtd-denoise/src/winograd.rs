@@ -11,8 +11,9 @@
 //!
 //! Vectors hold 16 tiles side by side along a row (in a fixed shuffled order, undone when the
 //! outputs are stored), so the dot products run on the same register blocking as
-//! [`crate::direct`]: [`BLOCK`] output channels × four vectors of tiles. Tiles are laid on the
-//! map's own grid and the order of summation is fixed per output value, so the result does not
+//! [`crate::direct`]: [`BLOCK`] output channels × four vectors of tiles. Tiles are laid from the
+//! first row computed (the map's own grid when that row is a multiple of 4, as the fast path's
+//! bands are) and the order of summation is fixed per output value, so the result does not
 //! depend on threads.
 
 use rayon::prelude::*;
@@ -387,7 +388,10 @@ mod tests {
             eprintln!("no AVX-512F here: the Winograd kernel is not used on this CPU");
             return;
         }
-        for (cin, cout, w, h) in [(5, 7, 37, 9), (20, 24, 300, 6), (24, 6, 70, 13), (3, 13, 1, 1), (8, 12, 530, 4)] {
+        // Tiles per row 10, 75 (64 + 11), 18, 1, 133 (64 + 64 + 5) and 38: one to four vectors.
+        for (cin, cout, w, h) in
+            [(5, 7, 37, 9), (20, 24, 300, 6), (24, 6, 70, 13), (3, 13, 1, 1), (8, 12, 530, 4), (4, 5, 150, 5)]
+        {
             let n = w * h;
             let value = |i: usize, m: usize| ((i * 7919 + m) % 1009) as f32 / 500.0 - 1.0;
             let rows: Vec<f32> = (0..9 * cin * cout).map(|i| value(i, 1)).collect();
