@@ -207,6 +207,7 @@ thread_local! {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::feature_map::convolution_by_definition;
 
     /// The kernel against a plain loop of the convolution's definition, for the dilations the
     /// network has, on sizes that leave partial tiles, segments and blocks, for a range of rows
@@ -232,6 +233,7 @@ mod tests {
                 let tall_h = range.len() + 3;
                 let mut dst = Map { w, h: tall_h, c: cout + 2, data: vec![9.0; (cout + 2) * w * tall_h] };
                 conv.apply_rows(&x, Rows { of_x: range.clone(), at }, &mut dst, 1, relu);
+                let reference = convolution_by_definition(&x, (&rows, &bias), (3, 3, dil), relu);
                 for c in 0..cout + 2 {
                     for y in 0..tall_h {
                         for px in 0..w {
@@ -244,21 +246,7 @@ mod tests {
                                     continue;
                                 }
                             };
-                            let mut sum = f64::from(bias[co]);
-                            for ky in 0..3 {
-                                for kx in 0..3 {
-                                    let sy = (py + ky * dil) as isize - dil as isize;
-                                    let sx = (px + kx * dil) as isize - dil as isize;
-                                    if sy < 0 || sx < 0 || sy >= h as isize || sx >= w as isize {
-                                        continue;
-                                    }
-                                    for ci in 0..cin {
-                                        let input = x.data[ci * n + sy as usize * w + sx as usize];
-                                        sum += f64::from(rows[((ky * 3 + kx) * cin + ci) * cout + co] * input);
-                                    }
-                                }
-                            }
-                            let want = if relu { sum.max(0.0) } else { sum } as f32;
+                            let want = reference.data[co * n + py * w + px];
                             assert!(
                                 (got - want).abs() < 1e-4 * (1.0 + want.abs()),
                                 "{cin}->{cout} d{dil} {w}x{h}: ({px},{py}) {got} vs {want}"

@@ -69,16 +69,10 @@ impl DirectWeights {
         DirectWeights { cin, cout, kh, kw, dil, weights, bias: padded_bias }
     }
 
-    /// Writes act(conv(x) + bias) (+ `residual`, after the ReLU) into planes [offset, offset +
-    /// cout) of `dst`, a map of x's size. `residual` holds `cout` planes of that size.
-    pub(crate) fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool, residual: Option<&Map>) {
-        let to = Rows { of_x: 0..x.h, at: 0 };
-        self.apply_rows(x, to, dst, offset, relu, residual)
-    }
-
-    /// [`DirectWeights::apply`] for output rows `to.of_x` of x's grid only (reading the rows
-    /// around them that exist), stored from row `to.at` of `dst`, a map of x's width.
-    /// `residual`, if given, is on dst's grid.
+    /// Writes act(conv(x) + bias) (+ `residual`, after the ReLU) for output rows `to.of_x` of
+    /// x's grid (reading the rows around them that exist; zero padding outside x), stored from
+    /// row `to.at` of `dst` (a map of x's width) into planes [offset, offset + cout).
+    /// `residual`, if given, holds `cout` planes on dst's grid.
     pub(crate) fn apply_rows(
         &self,
         x: &Map,
@@ -243,6 +237,7 @@ fn lane_mask(x: usize, dx: isize, w: usize) -> u16 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::feature_map::convolution_by_definition;
 
     #[test]
     fn lane_masks_cover_exactly_the_pixels_inside_the_row() {
@@ -277,39 +272,14 @@ mod tests {
             let conv = DirectWeights::new(cin, cout, (kh, kw, dil), &rows, &bias);
             for (relu, residual) in [(false, None), (true, Some(&res))] {
                 let mut dst = Map { w, h, c: cout + 2, data: vec![9.0; (cout + 2) * n] };
-                conv.apply(&x, &mut dst, 1, relu, residual);
-                let (ph, pw) = ((kh - 1) / 2 * dil, (kw - 1) / 2 * dil);
+                conv.apply_rows(&x, Rows { of_x: 0..h, at: 0 }, &mut dst, 1, relu, residual);
+                let want = convolution_by_definition(&x, (&rows, &bias), (kh, kw, dil), relu);
                 for co in 0..cout {
-                    for py in 0..h {
-                        for px in 0..w {
-                            let mut sum = bias[co];
-                            for ky in 0..kh {
-                                for kx in 0..kw {
-                                    let (sy, sx) = (
-                                        (py + ky * dil) as isize - ph as isize,
-                                        (px + kx * dil) as isize - pw as isize,
-                                    );
-                                    if sy < 0 || sx < 0 || sy >= h as isize || sx >= w as isize {
-                                        continue;
-                                    }
-                                    for ci in 0..cin {
-                                        let input = x.data[ci * n + sy as usize * w + sx as usize];
-                                        sum += rows[((ky * kw + kx) * cin + ci) * cout + co] * input;
-                                    }
-                                }
-                            }
-                            if relu {
-                                sum = sum.max(0.0);
-                            }
-                            if let Some(r) = residual {
-                                sum += r.data[co * n + py * w + px];
-                            }
-                            let got = dst.data[(1 + co) * n + py * w + px];
-                            assert!(
-                                (got - sum).abs() < 1e-4,
-                                "{cin}->{cout} {kh}x{kw} d{dil}: ({px},{py}) {got} vs {sum}"
-                            );
-                        }
+                    for p in 0..n {
+                        let sum = want.data[co * n + p] + residual.map_or(0.0, |r| r.data[co * n + p]);
+                        let got = dst.data[(1 + co) * n + p];
+                        let (px, py) = (p % w, p / w);
+                        assert!((got - sum).abs() < 1e-4, "{cin}->{cout} {kh}x{kw} d{dil}: ({px},{py}) {got} vs {sum}");
                     }
                 }
                 // The planes around the written ones are untouched.

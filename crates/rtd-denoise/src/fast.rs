@@ -188,13 +188,9 @@ impl Conv {
     /// Writes conv(x) (+ bias, optionally ReLU) into planes [offset, offset + cout) of `dst`,
     /// a map of the same size as `x` with `dst.c` planes.
     fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool) {
-        match &self.prepared {
-            Prepared::Direct(direct) => return direct.apply(x, dst, offset, relu, None),
-            Prepared::Winograd(winograd) => return winograd.apply(x, dst, offset, relu),
-            Prepared::ColumnWinograd(winograd) => {
-                return winograd.apply_rows(x, Rows { of_x: 0..x.h, at: 0 }, dst, offset, relu)
-            }
-            Prepared::Gemm => {}
+        // The vector kernels compute any range of rows; this is all of them.
+        if !matches!(self.prepared, Prepared::Gemm) {
+            return self.apply_rows(x, Rows { of_x: 0..x.h, at: 0 }, dst, offset, relu);
         }
         assert_eq!(x.c, self.cin);
         assert!(offset + self.cout <= dst.c && (dst.w, dst.h) == (x.w, x.h));

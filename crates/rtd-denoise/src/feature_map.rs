@@ -50,3 +50,38 @@ pub struct Rows {
     /// The destination row of the first.
     pub at: usize,
 }
+
+/// The kernels' tests' reference: act(conv(x) + bias) straight from the definition, summed in
+/// f64, for weights as rows (ky, kx, ci), columns co (the gemm layout) and zero padding: `cout`
+/// (= `bias.len()`) planes of x's size.
+#[cfg(test)]
+pub(crate) fn convolution_by_definition(
+    x: &Map,
+    (rows, bias): (&[f32], &[f32]),
+    (kh, kw, dil): (usize, usize, usize),
+    relu: bool,
+) -> Map {
+    let (w, h, cin, cout, n) = (x.w, x.h, x.c, bias.len(), x.w * x.h);
+    let (ph, pw) = ((kh - 1) / 2 * dil, (kw - 1) / 2 * dil);
+    let mut out = Map { w, h, c: cout, data: vec![0.0; cout * n] };
+    for co in 0..cout {
+        for py in 0..h {
+            for px in 0..w {
+                let mut sum = f64::from(bias[co]);
+                for ky in 0..kh {
+                    for kx in 0..kw {
+                        let sy = (py + ky * dil).checked_sub(ph).filter(|&sy| sy < h);
+                        let sx = (px + kx * dil).checked_sub(pw).filter(|&sx| sx < w);
+                        let (Some(sy), Some(sx)) = (sy, sx) else { continue };
+                        for ci in 0..cin {
+                            let weight = rows[((ky * kw + kx) * cin + ci) * cout + co];
+                            sum += f64::from(weight) * f64::from(x.data[ci * n + sy * w + sx]);
+                        }
+                    }
+                }
+                out.data[co * n + py * w + px] = if relu { sum.max(0.0) } else { sum } as f32;
+            }
+        }
+    }
+    out
+}

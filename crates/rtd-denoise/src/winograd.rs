@@ -85,14 +85,9 @@ impl WinogradWeights {
         WinogradWeights { cin, cout, weights, bias: padded_bias }
     }
 
-    /// Writes act(conv(x) + bias) into planes [offset, offset + cout) of `dst`, a map of x's
-    /// size (zero padding outside x).
-    pub(crate) fn apply(&self, x: &Map, dst: &mut Map, offset: usize, relu: bool) {
-        self.apply_rows(x, Rows { of_x: 0..x.h, at: 0 }, dst, offset, relu)
-    }
-
-    /// [`WinogradWeights::apply`] for output rows `to.of_x` of x's grid only (tiles start at
-    /// its first), stored from row `to.at` of `dst`, a map of x's width.
+    /// Writes act(conv(x) + bias) for output rows `to.of_x` of x's grid (tiles start at its
+    /// first; zero padding outside x), stored from row `to.at` of `dst` (a map of x's width)
+    /// into planes [offset, offset + cout).
     pub(crate) fn apply_rows(&self, x: &Map, to: Rows, dst: &mut Map, offset: usize, relu: bool) {
         assert!(available(), "the Winograd kernel needs AVX-512F");
         assert_eq!(x.c, self.cin);
@@ -379,6 +374,7 @@ unsafe fn output_transform(m: *const f32, xi_stride: usize, bias: f32, relu: boo
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::feature_map::convolution_by_definition;
 
     /// The kernel against a plain loop of the convolution's definition, on sizes that leave
     /// partial tiles, vectors, batches and blocks.
@@ -400,30 +396,16 @@ mod tests {
             let conv = WinogradWeights::new(cin, cout, &rows, &bias);
             for relu in [false, true] {
                 let mut dst = Map { w, h, c: cout + 2, data: vec![9.0; (cout + 2) * n] };
-                conv.apply(&x, &mut dst, 1, relu);
+                conv.apply_rows(&x, Rows { of_x: 0..h, at: 0 }, &mut dst, 1, relu);
+                let reference = convolution_by_definition(&x, (&rows, &bias), (3, 3, 1), relu);
                 for co in 0..cout {
-                    for py in 0..h {
-                        for px in 0..w {
-                            let mut sum = f64::from(bias[co]);
-                            for ky in 0..3 {
-                                for kx in 0..3 {
-                                    let (sy, sx) = ((py + ky) as isize - 1, (px + kx) as isize - 1);
-                                    if sy < 0 || sx < 0 || sy >= h as isize || sx >= w as isize {
-                                        continue;
-                                    }
-                                    for ci in 0..cin {
-                                        let input = x.data[ci * n + sy as usize * w + sx as usize];
-                                        sum += f64::from(rows[((ky * 3 + kx) * cin + ci) * cout + co] * input);
-                                    }
-                                }
-                            }
-                            let want = if relu { sum.max(0.0) } else { sum } as f32;
-                            let got = dst.data[(1 + co) * n + py * w + px];
-                            assert!(
-                                (got - want).abs() < 1e-4 * (1.0 + want.abs()),
-                                "{cin}->{cout} {w}x{h}: ({px},{py}) {got} vs {want}"
-                            );
-                        }
+                    for p in 0..n {
+                        let (want, got) = (reference.data[co * n + p], dst.data[(1 + co) * n + p]);
+                        let (px, py) = (p % w, p / w);
+                        assert!(
+                            (got - want).abs() < 1e-4 * (1.0 + want.abs()),
+                            "{cin}->{cout} {w}x{h}: ({px},{py}) {got} vs {want}"
+                        );
                     }
                 }
                 // The planes around the written ones are untouched.
