@@ -122,7 +122,8 @@ fn black_input_gives_black_output_and_constants_stay_constant() {
 /// its decoded output is multiplied by the same factor. Without albedo nothing is divided.
 #[test]
 fn the_shipped_model_demodulates_by_albedo_and_multiplies_it_back() {
-    use rtd::denoise::encode::{decode_color, encode_planes, DEMOD_EPS};
+    use rtd::denoise::encode::{decode_color, DEMOD_EPS};
+    use rtd::denoise::plane_encoder::encode_planes;
     let m = model();
     assert!(m.config().demodulates());
     let (color, g) = cornell_inputs(40, 36);

@@ -5,7 +5,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rtd_image::{luminance, HdrImage};
 
-use crate::planes::{Plane, INPUT_CHANNELS};
+use crate::planes::INPUT_CHANNELS;
 use crate::DenoiseError;
 
 /// Largest colour value accepted before exposure; +Inf and larger values are clamped to it.
@@ -108,7 +108,8 @@ impl<'a> DenoiseInput<'a> {
     }
 }
 
-fn clean(x: f32, lo: f32, hi: f32) -> f32 {
+/// x clamped to [lo, hi], with NaN as 0.
+pub(crate) fn clean(x: f32, lo: f32, hi: f32) -> f32 {
     if x.is_nan() {
         0.0
     } else {
@@ -117,7 +118,7 @@ fn clean(x: f32, lo: f32, hi: f32) -> f32 {
 }
 
 /// Pixels per task where a per-pixel pass over an image is split between threads.
-const PIXEL_CHUNK: usize = 16384;
+pub(crate) const PIXEL_CHUNK: usize = 16384;
 
 /// Auto-exposure: the scale that maps the log-average luminance of the lit pixels to 0.18
 /// (1 for an all-black image).
@@ -231,8 +232,7 @@ pub fn encode_deviation_plane(
 }
 
 /// plane[i] = transfer(value(channel k of image i) ÷ demodulation factor i), threaded over
-/// pixel chunks; the channel and the albedo's presence are chosen outside the pixel loop, so
-/// the loop has no branches and vectorises.
+/// pixel chunks.
 fn encode_plane(
     plane: &mut [f32],
     image: &HdrImage,
@@ -241,66 +241,35 @@ fn encode_plane(
     exposure: f32,
     value: impl Fn(f32) -> f32 + Sync,
 ) {
-    let channel = |p: &Vec3| p.to_array()[k];
     plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
         let i0 = c * PIXEL_CHUNK;
-        let src = &image.pixels[i0..i0 + chunk.len()];
-        match albedo {
-            Some(a) => {
-                let alb = &a.pixels[i0..i0 + chunk.len()];
-                for ((v, p), q) in chunk.iter_mut().zip(src).zip(alb) {
-                    *v = transfer(value(channel(p)) / albedo_factor(channel(q)), exposure);
-                }
-            }
-            None => chunk.iter_mut().zip(src).for_each(|(v, p)| *v = transfer(value(channel(p)), exposure)),
-        }
+        encode_values(chunk, i0..i0 + chunk.len(), image, albedo, k, exposure, &value);
     });
 }
 
-/// The network's input planes, `encoding.channels` × H × W in channel-major order (the first
-/// planes of the [`Plane`] layout). With `encoding.demodulate` and an albedo layer, the colour
-/// and deviation planes hold colour (deviation) ÷ (albedo + [`DEMOD_EPS`]).
-pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) -> Result<Vec<f32>, DenoiseError> {
-    let (w, h) = input.size()?;
-    let n = (w * h) as usize;
-    let depth_scale = input.ao_depth.map(|(_, d)| {
-        let hits: Vec<f32> = d.iter().copied().filter(|v| v.is_finite() && *v > 0.0).collect();
-        if hits.is_empty() {
-            1.0
-        } else {
-            hits.len() as f32 / hits.iter().sum::<f32>()
+/// dst[j] = transfer(value(channel k of image pixel index[j]) ÷ demodulation factor there): the
+/// colour and deviation planes at any pixels, whole planes or a tile's window
+/// ([`crate::plane_encoder::PlaneEncoder`]). The gather and the transfer are separate loops, and
+/// the albedo's presence is chosen outside them, so the transfer has no branches and vectorises.
+pub(crate) fn encode_values(
+    dst: &mut [f32],
+    index: impl Iterator<Item = usize>,
+    image: &HdrImage,
+    albedo: Option<&HdrImage>,
+    k: usize,
+    exposure: f32,
+    value: impl Fn(f32) -> f32,
+) {
+    let channel = |p: &Vec3| p.to_array()[k];
+    match albedo {
+        Some(a) => {
+            for (v, i) in dst.iter_mut().zip(index) {
+                *v = value(channel(&image.pixels[i])) / albedo_factor(channel(&a.pixels[i]));
+            }
         }
-    });
-    let demod = demod_albedo(input, encoding.demodulate);
-    let mut planes = vec![0.0f32; encoding.channels.min(INPUT_CHANNELS) * n];
-    // One plane per task; absent inputs leave their planes (and flags) at 0.
-    planes.par_chunks_mut(n).enumerate().for_each(|(c, plane)| {
-        let guide = &input.guide.pixels;
-        match (Plane::of(c), input.albedo_normal, input.ao_depth.zip(depth_scale)) {
-            (Plane::Color(k), _, _) => encode_color_plane(plane, input.color, demod, k, exposure),
-            (Plane::Guide(k), _, _) => plane.iter_mut().zip(guide).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0)),
-            (Plane::Albedo(k), Some((a, _)), _) => {
-                plane.iter_mut().zip(&a.pixels).for_each(|(v, p)| *v = clean(p[k], 0.0, 1.0))
-            }
-            (Plane::Normal(k), Some((_, nrm)), _) => {
-                plane.iter_mut().zip(&nrm.pixels).for_each(|(v, p)| *v = clean(p[k], -1.0, 1.0))
-            }
-            (Plane::Ao, _, Some(((ao, _), _))) => plane.iter_mut().zip(ao).for_each(|(v, a)| *v = clean(*a, 0.0, 1.0)),
-            // Depth relative to the mean hit distance, so the scene's scale does not matter.
-            (Plane::Depth, _, Some(((_, d), s))) => {
-                plane.iter_mut().zip(d).for_each(|(v, d)| *v = clean(d * s, 0.0, 8.0))
-            }
-            (Plane::HasAlbedoNormal, Some(_), _) | (Plane::HasAoDepth, _, Some(_)) => plane.fill(1.0),
-            (Plane::Deviation(k), _, _) => {
-                if let Some(v) = input.variance {
-                    encode_deviation_plane(plane, v, demod, k, exposure)
-                }
-            }
-            (Plane::HasVariance, _, _) if input.variance.is_some() => plane.fill(1.0),
-            _ => {}
-        }
-    });
-    Ok(planes)
+        None => dst.iter_mut().zip(index).for_each(|(v, i)| *v = value(channel(&image.pixels[i]))),
+    }
+    dst.iter_mut().for_each(|v| *v = transfer(*v, exposure));
 }
 
 #[cfg(test)]
@@ -341,50 +310,6 @@ mod tests {
         // A model's key scales it: the log-average goes to the key instead.
         let key = Encoding { key: 1.44, ..Encoding::default() };
         assert!((key.exposure(&img) - 1.44).abs() < 1e-5);
-    }
-
-    #[test]
-    fn demodulation_divides_colour_by_albedo_only_when_asked_and_given() {
-        let color = HdrImage::from_pixels(2, 1, vec![Vec3::new(0.5, 1.0, 2.0), Vec3::splat(3.0)]);
-        let albedo = HdrImage::from_pixels(2, 1, vec![Vec3::new(0.24, 0.49, 0.0), Vec3::splat(2.0)]);
-        let normal = HdrImage::from_pixels(2, 1, vec![Vec3::Z; 2]);
-        let with = DenoiseInput::new(&color, &color).albedo_normal(&albedo, &normal);
-        let demod = encode_planes(&with, 0.7, Encoding { demodulate: true, ..Encoding::default() }).unwrap();
-        let plain = encode_planes(&with, 0.7, Encoding::default()).unwrap();
-        // Albedo + ε: 0.25, 0.5, 0.01; albedo above 1 is clamped to 1 first.
-        let expected = [0.5 / 0.25, 3.0 / 1.01, 1.0 / 0.5, 3.0 / 1.01, 2.0 / 0.01, 3.0 / 1.01];
-        for (v, x) in demod[..6].iter().zip(expected) {
-            assert!((v - encode_color(x, 0.7)).abs() < 1e-5, "{v} vs {x}");
-        }
-        assert_eq!(demod[6..], plain[6..], "only the colour planes change");
-        assert_ne!(demod[..6], plain[..6]);
-        // Without an albedo layer there is nothing to divide by.
-        let without = DenoiseInput::new(&color, &color);
-        let demod = Encoding { demodulate: true, ..Encoding::default() };
-        assert_eq!(
-            encode_planes(&without, 0.7, demod).unwrap(),
-            encode_planes(&without, 0.7, Encoding::default()).unwrap()
-        );
-    }
-
-    #[test]
-    fn ao_and_depth_fill_their_planes_and_flag_only_when_given() {
-        let color = HdrImage::from_pixels(2, 1, vec![Vec3::splat(0.5), Vec3::splat(3.0)]);
-        let (ao, depth) = ([0.25, 1.0], [2.0, 6.0]);
-        let plane = |planes: &[f32], c: usize| planes[2 * c..2 * c + 2].to_vec();
-        let with = encode_planes(&DenoiseInput::new(&color, &color).ao_depth(&ao, &depth), 1.0, Encoding::default());
-        let without = encode_planes(&DenoiseInput::new(&color, &color), 1.0, Encoding::default());
-        let (with, without) = (with.unwrap(), without.unwrap());
-        let (ao, depth, flag) = (Plane::Ao.index(), Plane::Depth.index(), Plane::HasAoDepth.index());
-        // Depth relative to the mean hit distance (4).
-        assert_eq!(plane(&with, depth), [0.5, 1.5]);
-        assert_eq!((plane(&with, ao), plane(&with, flag)), (vec![0.25, 1.0], vec![1.0, 1.0]));
-        for c in [ao, depth, flag] {
-            assert_eq!(plane(&without, c), [0.0, 0.0], "plane {c}");
-        }
-        for c in (0..INPUT_CHANNELS).filter(|c| ![ao, depth, flag].contains(c)) {
-            assert_eq!(plane(&with, c), plane(&without, c), "plane {c}");
-        }
     }
 
     #[test]

@@ -10,9 +10,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rtd_image::HdrImage;
 
-use crate::encode::{decode_color, demod_albedo, demod_factor, encode_planes, DenoiseInput};
+use crate::encode::{decode_color, demod_albedo, demod_factor, DenoiseInput};
 use crate::fast::{FastNet, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
+use crate::plane_encoder::{PlaneEncoder, PlaneSource};
 use crate::planes::{is_supported_width, LEGACY_INPUT_CHANNELS};
 use crate::{DenoiseError, INPUT_CHANNELS};
 use rtd_image::MAX_DIMENSION;
@@ -231,12 +232,13 @@ impl Denoiser {
         }
         let encoding = self.config.encoding();
         let exposure = encoding.exposure(input.color);
-        let planes = encode_planes(input, exposure, encoding)?;
+        // Each tile's window is encoded as it is read: no whole-image input planes.
+        let encoder = PlaneEncoder::new(input, exposure, encoding)?;
         let n = (w * h) as usize;
         // Mean over the passes of the decoded output (one pass: the decoded output itself).
         let mut sum = vec![0.0f32; 3 * n];
         for t in &Dihedral::ORDER[..self.passes] {
-            let out = self.run_planes_as(&planes, w as usize, h as usize, *t);
+            let out = self.run_source_as(PlaneSource::Inputs(&encoder), w as usize, h as usize, *t);
             sum.par_iter_mut().zip(out.par_iter()).for_each(|(s, o)| *s += decode_color(*o, exposure));
         }
         let passes = self.passes as f32;
@@ -269,6 +271,11 @@ impl Denoiser {
     /// [`Denoiser::run_planes`] on the image transformed by `t` (read in place, not copied),
     /// with the output mapped back to the original's pixels.
     pub fn run_planes_as(&self, planes: &[f32], w: usize, h: usize, t: Dihedral) -> Vec<f32> {
+        self.run_source_as(PlaneSource::Planes(planes), w, h, t)
+    }
+
+    /// [`Denoiser::run_planes_as`] on planes from `source`.
+    fn run_source_as(&self, source: PlaneSource, w: usize, h: usize, t: Dihedral) -> Vec<f32> {
         let (ow, oh) = (w, h);
         let (w, h) = t.size(w, h);
         let a = self.config.alignment();
@@ -289,7 +296,7 @@ impl Denoiser {
                 let (x0, y0) = ((tx as i64 - m).max(-p), (ty as i64 - m).max(-p));
                 let (x1, y1) = (((tx + tw) as i64 + m).min(wp as i64 + p), ((ty + th) as i64 + m).min(hp as i64 + p));
                 let (iw, ih) = ((x1 - x0) as usize, (y1 - y0) as usize);
-                let tile = self.run_tile(planes, (ow, oh), t, (x0, y0, iw, ih), scratch);
+                let tile = self.run_tile(source, (ow, oh), t, (x0, y0, iw, ih), scratch);
                 // Keep the tile's interior, each pixel where it came from.
                 let (ox, oy) = ((tx as i64 - x0) as usize, (ty as i64 - y0) as usize);
                 for c in 0..3 {
@@ -310,7 +317,7 @@ impl Denoiser {
     /// Returns 3 × th × tw encoded colour.
     fn run_tile(
         &self,
-        planes: &[f32],
+        source: PlaneSource,
         size: (usize, usize),
         t: Dihedral,
         (x0, y0, tw, th): (i64, i64, usize, usize),
@@ -334,10 +341,8 @@ impl Denoiser {
         let c = self.config.input_channels;
         let mut x = scratch.map(tw, th, c);
         x.data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
-            let (plane, y) = (&planes[row / th * w * h..][..w * h], row % th);
-            for (d, i) in dst.iter_mut().zip(&index[y * tw..][..tw]) {
-                *d = plane[*i];
-            }
+            let (c, y) = (row / th, row % th);
+            source.fill(c, &index[y * tw..][..tw], w * h, dst);
         });
         if self.use_burn {
             let input = Tensor::<4>::from_data(TensorData::new(x.data, [1, c, th, tw]), &self.device);

@@ -13,6 +13,7 @@ pub mod feature_map;
 pub mod filter;
 pub mod infer;
 pub mod model;
+pub mod plane_encoder;
 pub mod planes;
 pub mod pooling;
 pub mod winograd;

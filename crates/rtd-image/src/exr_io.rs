@@ -1,3 +1,4 @@
+use std::borrow::Cow;
 use std::path::Path;
 
 use exr::prelude::{
@@ -98,28 +99,50 @@ pub fn write_exr(path: &Path, layers: &Layers) -> Result<(), ImageError> {
     write_bytes_atomic(path, &encode_exr(path, layers)?)
 }
 
+/// [`write_exr`], taking the channels: 32-bit ones move into the encoder instead of being copied,
+/// so a large image is not held twice while it is written (a 4K file of 17 channels: 564 MB less
+/// at the peak).
+pub fn write_exr_owned(path: &Path, layers: Layers) -> Result<(), ImageError> {
+    let (size, half) = ((layers.width, layers.height), layers.half_channels);
+    let channels = layers.channels.into_iter().map(|(name, s)| (name, Cow::Owned(s)));
+    write_bytes_atomic(path, &encode_channels(path, size, &half, channels)?)
+}
+
 /// The bytes [`write_exr`] writes for `layers`: the same bytes for the same layers on any
 /// machine, so an EXR made on one machine and written on another is the file the second would
 /// have made. `path` names the file in errors.
 pub fn encode_exr(path: &Path, layers: &Layers) -> Result<Vec<u8>, ImageError> {
-    if layers.channels.is_empty() || layers.width == 0 || layers.height == 0 {
-        return Err(ImageError::invalid(path, "refusing to write an empty EXR"));
-    }
-    let size = (layers.width as usize, layers.height as usize);
-    let channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = layers
-        .channels
-        .iter()
+    let channels = layers.channels.iter().map(|(name, s)| (name.clone(), Cow::Borrowed(s.as_slice())));
+    encode_channels(path, (layers.width, layers.height), &layers.half_channels, channels)
+}
+
+/// Encodes `width` × `height` channels, those named in `half` as 16-bit and the rest 32-bit, with
+/// non-finite samples as 0 and half samples clamped to half's range. Owned 32-bit samples are
+/// cleaned in place and moved, not copied.
+fn encode_channels<'a>(
+    path: &Path,
+    (width, height): (u32, u32),
+    half: &[String],
+    channels: impl Iterator<Item = (String, Cow<'a, [f32]>)>,
+) -> Result<Vec<u8>, ImageError> {
+    let channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
         .map(|(name, s)| {
-            let clean = s.iter().map(|&v| if v.is_finite() { v } else { 0.0 });
-            let samples = if layers.half_channels.contains(name) {
+            let clean = |v: f32| if v.is_finite() { v } else { 0.0 };
+            let samples = if half.contains(&name) {
                 let max = f16::MAX.to_f32();
-                FlatSamples::F16(clean.map(|v| f16::from_f32(v.clamp(-max, max))).collect())
+                FlatSamples::F16(s.iter().map(|&v| f16::from_f32(clean(v).clamp(-max, max))).collect())
             } else {
-                FlatSamples::F32(clean.collect())
+                let mut v = s.into_owned();
+                v.iter_mut().for_each(|x| *x = clean(*x));
+                FlatSamples::F32(v)
             };
             AnyChannel::new(name.as_str(), samples)
         })
         .collect();
+    if channels.is_empty() || width == 0 || height == 0 {
+        return Err(ImageError::invalid(path, "refusing to write an empty EXR"));
+    }
+    let size = (width as usize, height as usize);
     // Blocks in increasing order: with the default (unspecified) order, blocks compressed in
     // parallel land in completion order and the same image gives different bytes.
     let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
@@ -161,7 +184,9 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
     let first = image.layer_data.first().ok_or_else(|| ImageError::decode(path, "no image part"))?;
     let (w, h) = (first.size.width(), first.size.height());
     let mut out = Layers::new(w as u32, h as u32);
-    for part in &image.layer_data {
+    // The parts are taken apart as they are read: 32-bit samples move into the channels, so
+    // the file is never held twice.
+    for part in image.layer_data {
         if (part.size.width(), part.size.height()) != (w, h) {
             let name = part.attributes.layer_name.as_ref().map(|n| n.to_string()).unwrap_or_default();
             return Err(ImageError::invalid(
@@ -170,20 +195,24 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageError> {
             ));
         }
         let prefix = part.attributes.layer_name.as_ref().map(|n| n.to_string());
-        for ch in &part.channel_data.list {
+        for ch in part.channel_data.list {
             let own = ch.name.to_string();
             let name = match &prefix {
                 Some(p) if !own.starts_with(&format!("{p}.")) => format!("{p}.{own}"),
                 _ => own,
             };
-            let samples: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            let half = matches!(ch.sample_data, FlatSamples::F16(_));
+            let samples: Vec<f32> = match ch.sample_data {
+                FlatSamples::F32(v) => v,
+                other => other.values_as_f32().collect(),
+            };
             if samples.len() != w * h {
                 return Err(ImageError::invalid(
                     path,
                     format!("channel {name} is subsampled, which rtd does not read"),
                 ));
             }
-            if matches!(ch.sample_data, FlatSamples::F16(_)) {
+            if half {
                 out.half_channels.push(name.clone());
             }
             out.channels.push((name, samples));

@@ -33,7 +33,7 @@ mod sniff;
 
 pub use atomic::{create_dir_durably, parent_dir, remove_orphans_once, write_atomic, write_bytes_atomic, write_json};
 pub use error::ImageError;
-pub use exr_io::{encode_exr, read_exr, write_exr, Layers};
+pub use exr_io::{encode_exr, read_exr, write_exr, write_exr_owned, Layers};
 pub use format::ImageFormat;
 pub use hdr::{luminance, HdrImage};
 pub use layer::{Channels, Layer};

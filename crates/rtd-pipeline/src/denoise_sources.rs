@@ -102,19 +102,20 @@ impl DenoiseSources {
     pub fn run(&self, denoiser: &Denoiser, output: &Path, exposure: f32) -> Result<DenoiseOutcome, PipelineError> {
         ImageFormat::from_path(output)?;
         let denoised = self.denoise(denoiser)?;
-        denoised.write(output, exposure)?;
-        Ok(denoised.outcome(&self.color, output))
+        let outcome = denoised.outcome(&self.color, output);
+        denoised.write_into(output, exposure)?;
+        Ok(outcome)
     }
 
     /// Reads the inputs and denoises them with `denoiser`.
     pub fn denoise(&self, denoiser: &Denoiser) -> Result<Denoised, PipelineError> {
         self.check()?;
         let mut files = InputFiles::default();
-        let color = files.read(&self.color, Layer::Beauty, self.named(Layer::Beauty), true)?;
+        let color = files.read(&self.color, Layer::Beauty, self.named(Layer::Beauty))?;
         let mut inputs = vec!["color".to_string()];
         let mut other = |path: &Option<PathBuf>, layer: Layer, name: &str| -> Result<Option<HdrImage>, PipelineError> {
             let Some(p) = path else { return Ok(None) };
-            let img = files.read(p, layer, self.named(layer), false)?.image;
+            let img = files.read(p, layer, self.named(layer))?.image;
             same_size(p, &img, &color.image)?;
             inputs.push(name.to_string());
             Ok(Some(img))
@@ -122,31 +123,34 @@ impl DenoiseSources {
         let albedo = other(&self.albedo, Layer::Albedo, "albedo")?;
         let normal = other(&self.normal, Layer::Normal, "normal")?;
         let guide = other(&self.guide, Layer::Guide, "guide")?;
-        let albedo_normal = albedo.clone().zip(normal);
+        // The colour's EXR file, taken whole (not copied): the output is made from it.
+        let color_file = color.names.and_then(|names| Some((files.exr.remove(&self.color)?, names)));
+        drop(files);
         // Without a guide image, the albedo stands in for material colour × AO, and without an
         // albedo the noisy colour itself.
-        let stand_in = guide.clone().or(albedo).unwrap_or_else(|| color.image.clone());
+        let stand_in = guide.as_ref().or(albedo.as_ref()).unwrap_or(&color.image);
         // rtd's own renders carry the colour's per-pixel variance beside it.
-        let variance = color.exr.as_ref().and_then(|(layers, _)| layers.image(Layer::Variance));
+        let variance = color_file.as_ref().and_then(|(layers, _)| layers.image(Layer::Variance));
         let variance = variance.filter(|v| (v.width, v.height) == (color.image.width, color.image.height));
         if variance.is_some() && denoiser.reads_variance() {
             inputs.push("variance".to_string());
         }
-        let mut input = DenoiseInput::new(&color.image, &stand_in).variance(variance.as_ref());
-        if let Some((a, n)) = &albedo_normal {
+        let mut input = DenoiseInput::new(&color.image, stand_in).variance(variance.as_ref());
+        if let (Some(a), Some(n)) = (&albedo, &normal) {
             input = input.albedo_normal(a, n);
         }
         let t = Instant::now();
         let image = finite(denoiser.denoise(&input)?);
         let denoise_s = t.elapsed().as_secs_f64();
+        drop(variance);
         Ok(Denoised {
             nonfinite_input_values: count_nonfinite(&color.image),
             image,
             color: color.image,
-            color_file: color.exr,
+            color_file,
             color_half: color.half,
             guide,
-            albedo_normal,
+            albedo_normal: albedo.zip(normal),
             inputs,
             denoise_s,
             model: denoiser.name().to_string(),
@@ -160,11 +164,10 @@ impl DenoiseSources {
     }
 }
 
-/// One input as read: its image, and for an EXR the whole file with the three channels it
-/// came from.
+/// One input as read: its image, and for an EXR the three channels it came from.
 struct Source {
     image: HdrImage,
-    exr: Option<(Layers, [String; 3])>,
+    names: Option<[String; 3]>,
     half: bool,
 }
 
@@ -178,15 +181,8 @@ impl InputFiles {
     /// Reads the image of `layer` from `path`: from an EXR that layer under rtd's or another
     /// renderer's name, or under `prefix` when the caller named one ([`Layers::find_channels`]),
     /// else its bare `R,G,B`; PFM/PHM as linear RGB; PNG/JPEG sRGB-decoded, with 8- or 16-bit
-    /// normals decoded from n·0.5 + 0.5. `keep_file`: return the EXR's channels too (the colour's,
-    /// which the output is made from), else only the image.
-    fn read(
-        &mut self,
-        path: &Path,
-        layer: Layer,
-        prefix: Option<&str>,
-        keep_file: bool,
-    ) -> Result<Source, PipelineError> {
+    /// normals decoded from n·0.5 + 0.5. An EXR's channels stay in [`InputFiles::exr`].
+    fn read(&mut self, path: &Path, layer: Layer, prefix: Option<&str>) -> Result<Source, PipelineError> {
         let vector = layer.channels() == Channels::Xyz;
         let format = ImageFormat::from_path(path)?;
         let source = match format {
@@ -206,10 +202,10 @@ impl InputFiles {
                 })?;
                 let half = names.iter().all(|n| layers.half_channels.contains(n));
                 let image = layers.image_in(&names);
-                Source { image, exr: keep_file.then(|| (layers.clone(), names)), half }
+                Source { image, names: Some(names), half }
             }
             ImageFormat::Pfm | ImageFormat::Phm => {
-                Source { image: rtd_image::read_pfm(path)?, exr: None, half: format == ImageFormat::Phm }
+                Source { image: rtd_image::read_pfm(path)?, names: None, half: format == ImageFormat::Phm }
             }
             ImageFormat::Png | ImageFormat::Jpeg => {
                 let img = rtd_image::read_ldr(path)?;
@@ -221,7 +217,7 @@ impl InputFiles {
                 } else {
                     img
                 };
-                Source { image, exr: None, half: false }
+                Source { image, names: None, half: false }
             }
         };
         Ok(source)
@@ -301,11 +297,31 @@ impl Denoised {
         Ok(())
     }
 
+    /// [`Denoised::write`], consuming the result: an EXR output is made in the colour file's own
+    /// channels, which move into the file written instead of being copied.
+    pub fn write_into(mut self, path: &Path, exposure: f32) -> Result<(), PipelineError> {
+        match ImageFormat::from_path(path)? {
+            ImageFormat::Exr => {
+                let file = self.color_file.take();
+                let layers = self.layers_with(file);
+                drop(self);
+                rtd_image::write_exr_owned(path, layers)?
+            }
+            _ => self.write(path, exposure)?,
+        }
+        Ok(())
+    }
+
     /// The channels an EXR output holds ([`Denoised::write`]).
     pub fn exr_layers(&self) -> Layers {
-        let mut layers = match &self.color_file {
-            Some((file, names)) => {
-                let mut layers = file.clone();
+        self.layers_with(self.color_file.clone())
+    }
+
+    /// The channels an EXR output holds, made in `file` (the colour's EXR file and the names of
+    /// the colour's channels in it) when there is one.
+    fn layers_with(&self, file: Option<(Layers, [String; 3])>) -> Layers {
+        let mut layers = match file {
+            Some((mut layers, names)) => {
                 for (c, name) in names.iter().enumerate() {
                     layers.set_samples(name, self.image.channel(c));
                 }
@@ -387,13 +403,11 @@ fn count_nonfinite(img: &HdrImage) -> usize {
 }
 
 /// Replaces NaN/Inf in an output (the denoiser never makes them; this is the last guard).
-fn finite(img: HdrImage) -> HdrImage {
-    let px = img
-        .pixels
-        .iter()
-        .map(|p| Vec3::from_array(p.to_array().map(|v| if v.is_finite() { v } else { 0.0 })))
-        .collect();
-    HdrImage::from_pixels(img.width, img.height, px)
+fn finite(mut img: HdrImage) -> HdrImage {
+    for p in &mut img.pixels {
+        *p = Vec3::from_array(p.to_array().map(|v| if v.is_finite() { v } else { 0.0 }));
+    }
+    img
 }
 
 #[cfg(test)]

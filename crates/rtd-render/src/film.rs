@@ -172,14 +172,34 @@ impl Film {
     /// samples on `variance.R/G/B` ([`Film::variance`]).
     pub fn layers(&self) -> Layers {
         let mut l = Layers::new(self.width, self.height);
+        self.put_beauty(&mut l);
+        self.put_first_hits(&mut l);
+        l
+    }
+
+    /// [`Film::layers`], consuming the film: each sum is freed once its layer is made, so the
+    /// film and its layers are not held whole together.
+    pub fn into_layers(mut self) -> Layers {
+        let mut l = Layers::new(self.width, self.height);
+        self.put_beauty(&mut l);
+        (self.beauty, self.beauty_sq) = (Vec::new(), Vec::new());
+        self.put_first_hits(&mut l);
+        l
+    }
+
+    /// Adds the beauty and, from 2 samples on, its variance.
+    fn put_beauty(&self, l: &mut Layers) {
         l.put_image(Layer::Beauty, &self.beauty());
         if let Some(v) = self.variance() {
             l.put_image(Layer::Variance, &v);
         }
+    }
+
+    /// Adds the first hits' albedo, normal and depth.
+    fn put_first_hits(&self, l: &mut Layers) {
         l.put_image(Layer::Albedo, &self.albedo());
         l.put_image(Layer::Normal, &self.normal());
         l.put_plane(Layer::Depth, self.depth());
-        l
     }
 }
 
@@ -229,6 +249,27 @@ mod tests {
         let v = film.variance().unwrap().pixels[0];
         assert!((v.x - 5.0 / 12.0).abs() < 1e-6 && v.y == 0.0 && v.z == 0.0, "{v}");
         assert!(film.layers().image(Layer::Variance).is_some());
+    }
+
+    /// A film taken apart for its layers gives the layers it gives when borrowed, variance
+    /// included.
+    #[test]
+    fn consumed_films_give_the_same_layers() {
+        let mut film = Film::new(3, 2);
+        for (i, v) in [0.5, 2.0, 7.0].into_iter().enumerate() {
+            for p in 0..6 {
+                let q = quantize3(Vec3::new(v, p as f32, 1.0 + i as f32));
+                film.beauty[p] += q;
+                film.beauty_sq[p] += quantize_square(q);
+                film.albedo[p] += DVec3::splat(0.25 * p as f64);
+                film.normal[p] += DVec3::Z;
+                film.depth[p] += 1.5 + i as f64;
+            }
+            film.spp += 1;
+        }
+        let borrowed = film.layers();
+        assert!(borrowed.get("variance.R").is_some());
+        assert_eq!(film.into_layers(), borrowed);
     }
 
     #[test]

@@ -7,9 +7,8 @@ use std::path::{Path, PathBuf};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rtd_denoise::encode::{
-    demod_albedo, demod_factor, encode_color_plane, encode_deviation_plane, encode_planes, Encoding,
-};
+use rtd_denoise::encode::{demod_albedo, demod_factor, encode_color_plane, encode_deviation_plane, Encoding};
+use rtd_denoise::plane_encoder::encode_planes;
 use rtd_denoise::planes::{OptionalInput, Plane};
 use rtd_denoise::DenoiseInput;
 use rtd_image::{HdrImage, Layer};

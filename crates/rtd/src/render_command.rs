@@ -54,8 +54,8 @@ pub fn render(args: &RenderArgs) -> anyhow::Result<RenderReport> {
         TonemapArg::Clamp => Tonemap::Clamp,
         TonemapArg::Aces => Tonemap::Aces,
     };
-    run.write(&args.output, args.exposure, tonemap)?;
     let report = RenderReport::new(&loaded, &settings, model.as_ref(), &run, &args.output);
+    run.write_into(&args.output, args.exposure, tonemap)?;
     crate::print_line(&report.summary())?;
     if let Some(path) = &args.report {
         write_json(path, &report)?;
