@@ -1,5 +1,6 @@
 //! HDR input encoding: sanitising (NaN → 0, Inf and negatives clamped), auto-exposure from the
-//! log-average luminance, a log transfer for colour, and assembly of the network's input planes.
+//! log-average luminance, and a log transfer for colour. The input planes are assembled from
+//! these in [`crate::plane_encoder`].
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -85,18 +86,22 @@ impl<'a> DenoiseInput<'a> {
     /// Image width and height, after checking every layer has them.
     pub fn size(&self) -> Result<(u32, u32), DenoiseError> {
         let (w, h) = (self.color.width, self.color.height);
-        let n = (w * h) as usize;
-        let mut sizes = vec![("guide", self.guide.width, self.guide.height)];
+        let n = w as usize * h as usize;
+        let mut images = vec![("colour", self.color), ("guide", self.guide)];
         if let Some(v) = self.variance {
-            sizes.push(("variance", v.width, v.height));
+            images.push(("variance", v));
         }
         if let Some((a, nrm)) = self.albedo_normal {
-            sizes.push(("albedo", a.width, a.height));
-            sizes.push(("normal", nrm.width, nrm.height));
+            images.extend([("albedo", a), ("normal", nrm)]);
         }
-        for (name, iw, ih) in sizes {
-            if (iw, ih) != (w, h) {
-                return Err(DenoiseError::SizeMismatch { layer: name, size: (iw, ih), color: (w, h) });
+        for (name, image) in images {
+            let size = (image.width, image.height);
+            if size != (w, h) {
+                return Err(DenoiseError::SizeMismatch { layer: name, size, color: (w, h) });
+            }
+            // Images are built through their constructors, but their fields are public.
+            if image.pixels.len() != n {
+                return Err(DenoiseError::PixelCount { layer: name, pixels: image.pixels.len(), size });
             }
         }
         if let Some((ao, d)) = self.ao_depth {
@@ -214,9 +219,7 @@ pub fn demod_albedo<'a>(input: &DenoiseInput<'a>, demodulate: bool) -> Option<&'
 /// Writes channel `k` of `color`, divided by `albedo` + [`DEMOD_EPS`] if given, encoded, into
 /// `plane` (one value per pixel).
 pub fn encode_color_plane(plane: &mut [f32], color: &HdrImage, albedo: Option<&HdrImage>, k: usize, exposure: f32) {
-    // The transfer of colour ÷ demodulation factor (at least DEMOD_EPS, so finite; not clamped
-    // again, so demodulated HDR keeps its range).
-    encode_plane(plane, color, albedo, k, exposure, |x| clean(x, 0.0, MAX_INPUT));
+    encode_plane(plane, color, albedo, k, exposure, Estimate::Color);
 }
 
 /// Writes channel `k` of the colour's standard deviation, √variance, divided by `albedo` +
@@ -228,29 +231,39 @@ pub fn encode_deviation_plane(
     k: usize,
     exposure: f32,
 ) {
-    encode_plane(plane, variance, albedo, k, exposure, |x| clean(x, 0.0, MAX_INPUT * MAX_INPUT).sqrt());
+    encode_plane(plane, variance, albedo, k, exposure, Estimate::Deviation);
 }
 
-/// plane[i] = transfer(value(channel k of image i) ÷ demodulation factor i), threaded over
-/// pixel chunks.
+/// What a plane encoded through the colour's transfer holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Estimate {
+    /// The noisy colour, from its image.
+    Color,
+    /// The colour's standard deviation, from its variance image.
+    Deviation,
+}
+
+/// plane[i] = the encoded `what` of channel k at pixel i, threaded over pixel chunks.
 fn encode_plane(
     plane: &mut [f32],
     image: &HdrImage,
     albedo: Option<&HdrImage>,
     k: usize,
     exposure: f32,
-    value: impl Fn(f32) -> f32 + Sync,
+    what: Estimate,
 ) {
     plane.par_chunks_mut(PIXEL_CHUNK).enumerate().for_each(|(c, chunk)| {
         let i0 = c * PIXEL_CHUNK;
-        encode_values(chunk, i0..i0 + chunk.len(), image, albedo, k, exposure, &value);
+        encode_values(chunk, i0..i0 + chunk.len(), image, albedo, k, exposure, what);
     });
 }
 
-/// dst[j] = transfer(value(channel k of image pixel index[j]) ÷ demodulation factor there): the
-/// colour and deviation planes at any pixels, whole planes or a tile's window
-/// ([`crate::plane_encoder::PlaneEncoder`]). The gather and the transfer are separate loops, and
-/// the albedo's presence is chosen outside them, so the transfer has no branches and vectorises.
+/// dst[j] = transfer(value of channel k at image pixel index[j] ÷ demodulation factor there),
+/// the value being the colour clamped to [0, [`MAX_INPUT`]] or the standard deviation of a
+/// variance clamped to [0, MAX_INPUT²] (`what`): the colour and deviation planes at any pixels,
+/// whole planes or a tile's window ([`crate::plane_encoder::PlaneEncoder`]). The demodulation
+/// factor is at least DEMOD_EPS, so the quotient is finite, and is not clamped again, so
+/// demodulated HDR keeps its range.
 pub(crate) fn encode_values(
     dst: &mut [f32],
     index: impl Iterator<Item = usize>,
@@ -258,6 +271,26 @@ pub(crate) fn encode_values(
     albedo: Option<&HdrImage>,
     k: usize,
     exposure: f32,
+    what: Estimate,
+) {
+    match what {
+        Estimate::Color => gather_divided(dst, index, image, albedo, k, |x| clean(x, 0.0, MAX_INPUT)),
+        Estimate::Deviation => {
+            gather_divided(dst, index, image, albedo, k, |x| clean(x, 0.0, MAX_INPUT * MAX_INPUT).sqrt())
+        }
+    }
+    // The transfer in a loop of its own, with no branches, so it vectorises.
+    dst.iter_mut().for_each(|v| *v = transfer(*v, exposure));
+}
+
+/// dst[j] = value(channel k at image pixel index[j]) ÷ the albedo's demodulation factor there,
+/// the albedo's presence chosen outside the loop.
+fn gather_divided(
+    dst: &mut [f32],
+    index: impl Iterator<Item = usize>,
+    image: &HdrImage,
+    albedo: Option<&HdrImage>,
+    k: usize,
     value: impl Fn(f32) -> f32,
 ) {
     let channel = |p: &Vec3| p.to_array()[k];
@@ -269,7 +302,6 @@ pub(crate) fn encode_values(
         }
         None => dst.iter_mut().zip(index).for_each(|(v, i)| *v = value(channel(&image.pixels[i]))),
     }
-    dst.iter_mut().for_each(|v| *v = transfer(*v, exposure));
 }
 
 #[cfg(test)]
@@ -317,5 +349,10 @@ mod tests {
         let (a, b) = (HdrImage::new(4, 4), HdrImage::new(4, 5));
         let e = DenoiseInput::new(&a, &b).size().unwrap_err().to_string();
         assert!(e.contains("guide") && e.contains("4x5"), "{e}");
+        // An image whose pixels do not fill its size is refused, not read out of bounds.
+        let mut short = HdrImage::new(4, 4);
+        short.pixels.pop();
+        let e = DenoiseInput::new(&a, &a).albedo_normal(&a, &short).size().unwrap_err().to_string();
+        assert_eq!(e, "the normal image holds 15 pixels, not 4x4");
     }
 }

@@ -341,8 +341,8 @@ impl Denoiser {
         let c = self.config.input_channels;
         let mut x = scratch.map(tw, th, c);
         x.data.par_chunks_mut(tw).enumerate().for_each(|(row, dst)| {
-            let (c, y) = (row / th, row % th);
-            source.fill(c, &index[y * tw..][..tw], w * h, dst);
+            let (plane, y) = (row / th, row % th);
+            source.fill(plane, &index[y * tw..][..tw], w * h, dst);
         });
         if self.use_burn {
             let input = Tensor::<4>::from_data(TensorData::new(x.data, [1, c, th, tw]), &self.device);

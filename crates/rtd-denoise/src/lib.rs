@@ -52,6 +52,16 @@ pub enum DenoiseError {
         /// The colour image's width and height.
         color: (u32, u32),
     },
+    /// An image's pixels do not fill its width × height.
+    #[error("the {layer} image holds {pixels} pixels, not {}x{}", size.0, size.1)]
+    PixelCount {
+        /// The layer (colour, guide, variance, albedo or normal).
+        layer: &'static str,
+        /// Pixels it holds.
+        pixels: usize,
+        /// Its width and height.
+        size: (u32, u32),
+    },
     /// The AO or depth plane has another length than the colour image has pixels.
     #[error("AO/depth have {ao} and {depth} values, expected {expected}")]
     PlaneLength {

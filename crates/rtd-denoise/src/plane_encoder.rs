@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 use rtd_image::HdrImage;
 
-use crate::encode::{clean, demod_albedo, encode_values, DenoiseInput, Encoding, MAX_INPUT, PIXEL_CHUNK};
+use crate::encode::{clean, demod_albedo, encode_values, DenoiseInput, Encoding, Estimate, PIXEL_CHUNK};
 use crate::planes::{Plane, INPUT_CHANNELS};
 use crate::DenoiseError;
 
@@ -60,9 +60,7 @@ impl<'a> PlaneEncoder<'a> {
             dst.iter_mut().zip(index).for_each(|(v, i)| *v = clean(image.pixels[i].to_array()[k], lo, hi))
         }
         match (Plane::of(c), input.albedo_normal, input.ao_depth.zip(self.depth_scale)) {
-            (Plane::Color(k), _, _) => {
-                encode_values(dst, index, input.color, demod, k, e, |x| clean(x, 0.0, MAX_INPUT))
-            }
+            (Plane::Color(k), _, _) => encode_values(dst, index, input.color, demod, k, e, Estimate::Color),
             (Plane::Guide(k), _, _) => gather(dst, index, input.guide, k, 0.0, 1.0),
             (Plane::Albedo(k), Some((a, _)), _) => gather(dst, index, a, k, 0.0, 1.0),
             (Plane::Normal(k), Some((_, n)), _) => gather(dst, index, n, k, -1.0, 1.0),
@@ -73,10 +71,10 @@ impl<'a> PlaneEncoder<'a> {
                 dst.iter_mut().zip(index).for_each(|(v, i)| *v = clean(d[i] * s, 0.0, 8.0))
             }
             (Plane::HasAlbedoNormal, Some(_), _) | (Plane::HasAoDepth, _, Some(_)) => dst.fill(1.0),
-            (Plane::Deviation(k), _, _) if input.variance.is_some() => {
-                let v = input.variance.expect("checked by the guard");
-                encode_values(dst, index, v, demod, k, e, |x| clean(x, 0.0, MAX_INPUT * MAX_INPUT).sqrt())
-            }
+            (Plane::Deviation(k), _, _) => match input.variance {
+                Some(v) => encode_values(dst, index, v, demod, k, e, Estimate::Deviation),
+                None => dst.fill(0.0),
+            },
             (Plane::HasVariance, _, _) if input.variance.is_some() => dst.fill(1.0),
             _ => dst.fill(0.0),
         }
@@ -109,8 +107,8 @@ impl PlaneSource<'_> {
 /// order (the first planes of the [`Plane`] layout). With `encoding.demodulate` and an albedo
 /// layer, the colour and deviation planes hold colour (deviation) ÷ (albedo + DEMOD_EPS).
 pub fn encode_planes(input: &DenoiseInput, exposure: f32, encoding: Encoding) -> Result<Vec<f32>, DenoiseError> {
-    let encoder = PlaneEncoder::new(input, exposure, encoding)?;
     let (w, h) = input.size()?;
+    let encoder = PlaneEncoder::new(input, exposure, encoding)?;
     let n = (w * h) as usize;
     let mut planes = vec![0.0f32; encoder.channels() * n];
     // Tasks of one plane's pixel chunk each.
@@ -195,9 +193,11 @@ mod tests {
             .variance(Some(&variance));
         let index: Vec<usize> = (0..n).map(|i| i * 11 % n).collect();
         for input in [full, DenoiseInput::new(&color, &albedo)] {
-            for encoding in [Encoding { demodulate: true, ..Encoding::default() }, Encoding::default()] {
+            let legacy = Encoding { channels: crate::planes::LEGACY_INPUT_CHANNELS, ..Encoding::default() };
+            for encoding in [Encoding { demodulate: true, ..Encoding::default() }, Encoding::default(), legacy] {
                 let planes = encode_planes(&input, 0.8, encoding).unwrap();
                 let encoder = PlaneEncoder::new(&input, 0.8, encoding).unwrap();
+                assert_eq!(planes.len(), encoder.channels() * n);
                 for c in 0..encoder.channels() {
                     let mut window = vec![f32::NAN; n];
                     PlaneSource::Inputs(&encoder).fill(c, &index, n, &mut window);

@@ -253,6 +253,29 @@ mod tests {
         assert_eq!(back.plane(Layer::Depth).unwrap(), &[0.0, 1.0, 2.0, 3.0, 0.0, 5.0]);
     }
 
+    /// Writing channels taken (moved into the encoder) and writing them borrowed (copied) give
+    /// the same file, non-finite samples and half channels beyond half's range included; and
+    /// reading moves 32-bit samples out with their bits, half ones widened.
+    #[test]
+    fn owned_and_borrowed_channels_write_the_same_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut layers = Layers::new(3, 2);
+        layers.push("R", vec![1.5, f32::NAN, -0.0, f32::INFINITY, 1e-40, -3.0]);
+        layers.push("half.Y", vec![1e6, -1e6, f32::NEG_INFINITY, 0.333, 65504.0, 2.0]);
+        layers.half_channels.push("half.Y".into());
+        let (borrowed, owned) = (dir.path().join("b.exr"), dir.path().join("o.exr"));
+        write_exr(&borrowed, &layers).unwrap();
+        write_exr_owned(&owned, layers.clone()).unwrap();
+        assert_eq!(std::fs::read(&borrowed).unwrap(), std::fs::read(&owned).unwrap());
+        let back = read_exr(&owned).unwrap();
+        let bits = |s: &[f32]| s.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(back.get("R").unwrap()), bits(&[1.5, 0.0, -0.0, 0.0, 1e-40, -3.0]));
+        assert_eq!(back.get("half.Y").unwrap(), &[65504.0, -65504.0, 0.0, 0.33300781, 65504.0, 2.0]);
+        assert_eq!(back.half_channels, ["half.Y"]);
+        let empty = write_exr_owned(&dir.path().join("e.exr"), Layers::new(3, 2)).unwrap_err().to_string();
+        assert!(empty.contains("refusing to write an empty EXR"), "{empty}");
+    }
+
     #[test]
     fn the_same_image_gives_identical_bytes() {
         let dir = tempfile::tempdir().unwrap();

@@ -288,7 +288,7 @@ impl Denoised {
     /// - **PNG/JPEG**: the denoised image, exposed by `exposure` stops and clamped.
     pub fn write(&self, path: &Path, exposure: f32) -> Result<(), PipelineError> {
         match ImageFormat::from_path(path)? {
-            ImageFormat::Exr => rtd_image::write_exr(path, &self.exr_layers())?,
+            ImageFormat::Exr => rtd_image::write_exr_owned(path, self.exr_layers())?,
             format @ (ImageFormat::Pfm | ImageFormat::Phm) => {
                 rtd_image::write_pfm(path, &self.image, format == ImageFormat::Phm)?
             }

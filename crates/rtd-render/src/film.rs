@@ -177,8 +177,8 @@ impl Film {
         l
     }
 
-    /// [`Film::layers`], consuming the film: each sum is freed once its layer is made, so the
-    /// film and its layers are not held whole together.
+    /// [`Film::layers`], consuming the film: the beauty sums (half the film) are freed once the
+    /// beauty and variance layers are made, before the first-hit layers are.
     pub fn into_layers(mut self) -> Layers {
         let mut l = Layers::new(self.width, self.height);
         self.put_beauty(&mut l);

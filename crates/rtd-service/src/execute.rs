@@ -140,17 +140,13 @@ fn denoise(
     let sources = DenoiseSources::new(color).guide(find("guide")).albedo(find("albedo")).normal(find("normal"));
     let denoised = sources.denoise(denoiser)?;
     let (exr, png, input) = (dir.join("result.exr"), dir.join("result.png"), dir.join("input.png"));
-    denoised.write(&exr, 0.0)?;
     denoised.write(&png, 0.0)?;
     rtd_image::write_ldr(&input, &denoised.color, 0.0, Tonemap::Clamp).map_err(rtd_pipeline::PipelineError::from)?;
     let timings = serde_json::json!({ "denoise_s": denoised.denoise_s, "model": denoised.model }).to_string();
-    Ok(TaskOutput::Result {
-        exr: read(&exr)?,
-        png: read(&png)?,
-        input_png: read(&input)?,
-        timings,
-        size: (denoised.image.width, denoised.image.height),
-    })
+    let size = (denoised.image.width, denoised.image.height);
+    // Last, consuming the result: the EXR is made in the colour file's own channels.
+    denoised.write_into(&exr, 0.0)?;
+    Ok(TaskOutput::Result { exr: read(&exr)?, png: read(&png)?, input_png: read(&input)?, timings, size })
 }
 
 /// The render job's scene, camera and settings: what `rtd render` would use for them.
