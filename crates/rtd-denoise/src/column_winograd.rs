@@ -207,7 +207,7 @@ thread_local! {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::feature_map::convolution_by_definition;
+    use crate::feature_map::{convolution_by_definition, test_convolution};
 
     /// The kernel against a plain loop of the convolution's definition, for the dilations the
     /// network has, on sizes that leave partial tiles, segments and blocks, for a range of rows
@@ -223,10 +223,7 @@ mod tests {
             [(5, 7, 2, 37, 19), (24, 6, 2, 70, 13), (6, 13, 4, 130, 21), (3, 2, 4, 5, 3), (4, 3, 2, 90, 9)]
         {
             let n = w * h;
-            let value = |i: usize, m: usize| ((i * 7919 + m) % 1009) as f32 / 500.0 - 1.0;
-            let rows: Vec<f32> = (0..9 * cin * cout).map(|i| value(i, 1)).collect();
-            let bias: Vec<f32> = (0..cout).map(|i| value(i, 2)).collect();
-            let x = Map { w, h, c: cin, data: (0..cin * n).map(|i| value(i, 3)).collect() };
+            let (rows, bias, x) = test_convolution(cin, cout, 9, w, h);
             let conv = ColumnWinogradWeights::new(cin, cout, dil, &rows, &bias);
             for (relu, range) in [(false, 0..h), (true, 1..h - 1)] {
                 let at = 2;

@@ -237,7 +237,7 @@ fn lane_mask(x: usize, dx: isize, w: usize) -> u16 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::feature_map::convolution_by_definition;
+    use crate::feature_map::{convolution_by_definition, test_convolution, test_value};
 
     #[test]
     fn lane_masks_cover_exactly_the_pixels_inside_the_row() {
@@ -263,12 +263,9 @@ mod tests {
             (6, 2, 5, 1, 1, 65, 7),
             (8, 3, 1, 1, 1, 16, 3),
         ] {
-            let (kc, n) = (kh * kw * cin, w * h);
-            let value = |i: usize, m: usize| ((i * 7919 + m) % 1009) as f32 / 500.0 - 1.0;
-            let rows: Vec<f32> = (0..kc * cout).map(|i| value(i, 1)).collect();
-            let bias: Vec<f32> = (0..cout).map(|i| value(i, 2)).collect();
-            let x = Map { w, h, c: cin, data: (0..cin * n).map(|i| value(i, 3)).collect() };
-            let res = Map { w, h, c: cout, data: (0..cout * n).map(|i| value(i, 4)).collect() };
+            let n = w * h;
+            let (rows, bias, x) = test_convolution(cin, cout, kh * kw, w, h);
+            let res = Map { w, h, c: cout, data: (0..cout * n).map(|i| test_value(i, 4)).collect() };
             let conv = DirectWeights::new(cin, cout, (kh, kw, dil), &rows, &bias);
             for (relu, residual) in [(false, None), (true, Some(&res))] {
                 let mut dst = Map { w, h, c: cout + 2, data: vec![9.0; (cout + 2) * n] };

@@ -85,3 +85,20 @@ pub(crate) fn convolution_by_definition(
     }
     out
 }
+
+/// The kernels' tests' fixed value number `i` of stream `m`, in [-1, 1): weights (1), bias (2),
+/// input (3), residual (4).
+#[cfg(test)]
+pub(crate) fn test_value(i: usize, m: usize) -> f32 {
+    ((i * 7919 + m) % 1009) as f32 / 500.0 - 1.0
+}
+
+/// The kernels' tests' convolution: weights as rows (`taps` × cin, then cout), bias, and a
+/// cin-plane w × h input, all from [`test_value`].
+#[cfg(test)]
+pub(crate) fn test_convolution(cin: usize, cout: usize, taps: usize, w: usize, h: usize) -> (Vec<f32>, Vec<f32>, Map) {
+    let rows = (0..taps * cin * cout).map(|i| test_value(i, 1)).collect();
+    let bias = (0..cout).map(|i| test_value(i, 2)).collect();
+    let x = Map { w, h, c: cin, data: (0..cin * w * h).map(|i| test_value(i, 3)).collect() };
+    (rows, bias, x)
+}

@@ -374,7 +374,7 @@ unsafe fn output_transform(m: *const f32, xi_stride: usize, bias: f32, relu: boo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::feature_map::convolution_by_definition;
+    use crate::feature_map::{convolution_by_definition, test_convolution};
 
     /// The kernel against a plain loop of the convolution's definition, on sizes that leave
     /// partial tiles, vectors, batches and blocks.
@@ -389,10 +389,7 @@ mod tests {
             [(5, 7, 37, 9), (20, 24, 300, 6), (24, 6, 70, 13), (3, 13, 1, 1), (8, 12, 530, 4), (4, 5, 150, 5)]
         {
             let n = w * h;
-            let value = |i: usize, m: usize| ((i * 7919 + m) % 1009) as f32 / 500.0 - 1.0;
-            let rows: Vec<f32> = (0..9 * cin * cout).map(|i| value(i, 1)).collect();
-            let bias: Vec<f32> = (0..cout).map(|i| value(i, 2)).collect();
-            let x = Map { w, h, c: cin, data: (0..cin * n).map(|i| value(i, 3)).collect() };
+            let (rows, bias, x) = test_convolution(cin, cout, 9, w, h);
             let conv = WinogradWeights::new(cin, cout, &rows, &bias);
             for relu in [false, true] {
                 let mut dst = Map { w, h, c: cout + 2, data: vec![9.0; (cout + 2) * n] };
