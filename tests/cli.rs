@@ -159,8 +159,9 @@ fn bad_arguments_fail_cleanly() {
     assert!(files_in(dir.path()).is_empty(), "a failed command left files: {:?}", files_in(dir.path()));
 }
 
-/// `rtd train` with crops the dataset's views cannot give, and `rtd bench validation` at a
-/// sample count they were not rendered at: one error line each, and no run or report written.
+/// `rtd train` with crops the dataset's views cannot give or a network shape no model may have,
+/// and `rtd bench validation` at a sample count they were not rendered at: one error line each,
+/// and no run or report written; `rtd train` of a shape of its own saves that shape.
 #[test]
 fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
     let dir = tempfile::tempdir().unwrap();
@@ -179,7 +180,25 @@ fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
     let too_large = rtd(&["train", "--data", d, "-o", r, "--crop", "32", "-q"]);
     assert_fails(&too_large, "crop side 32 px is larger than the dataset's 24x24 px views");
     assert_fails(&rtd(&["train", "--data", d, "-o", r, "--crop", "18", "-q"]), "not a positive multiple of 4");
+    // A network shape no model may have, and a shape beside --init (which sets it): refused.
+    assert_fails(
+        &rtd(&["train", "--data", d, "-o", r, "--channels", "8,600", "-q"]),
+        "implausible channel list [8, 600]",
+    );
+    let shipped = rtd::denoise::Denoiser::builtin().unwrap();
+    let model = dir.path().join("model.bpk");
+    std::fs::write(&model, b"not read").unwrap();
+    let both = rtd(&["train", "--data", d, "-o", r, "--channels", "8", "--init", model.to_str().unwrap(), "-q"]);
+    assert_fails(&both, "--channels");
+    assert_eq!(both.status.code(), Some(2), "a usage error exits 2");
     assert!(!run.exists(), "a refused run wrote {}", run.display());
+    // A shape of its own, from random weights: the model saved says so and loads.
+    let shape = ["--channels", "8,12", "--bottleneck-blocks", "1", "--steps", "2", "--epoch-steps", "2"];
+    let trained = rtd(&[&["train", "--data", d, "-o", r, "--batch", "1", "--crop", "8", "-q"][..], &shape].concat());
+    assert!(trained.status.success(), "{}", String::from_utf8_lossy(&trained.stderr));
+    let made = rtd::denoise::Denoiser::load(&run.join("model.bpk")).unwrap();
+    assert_eq!((&made.config().channels, made.config().bottleneck_blocks), (&vec![8, 12], 1));
+    assert_ne!(made.config().channels, shipped.config().channels);
     let bench = rtd(&["bench", "validation", "--data", d, "--spp", "3", "-o", report.to_str().unwrap(), "-q"]);
     assert_fails(&bench, "has no noisy render at 3 spp (it has 1, 2, 4, 8, 16, 32, 64 spp)");
     assert!(!report.exists(), "a refused benchmark made {}", report.display());

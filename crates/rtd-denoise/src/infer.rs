@@ -110,19 +110,8 @@ impl Denoiser {
                 ),
             ));
         }
-        if config.channels.is_empty()
-            || config.channels.len() > 5
-            || config.channels.iter().any(|c| *c == 0 || *c > 512)
-        {
-            return Err(DenoiseError::model(name, format!("implausible channel list {:?}", config.channels)));
-        }
-        // An even prong has no centre tap: its branch would come out a pixel short of the others.
-        if !(1..=15).contains(&config.prong) || config.prong % 2 == 0 || config.bottleneck_blocks > 64 {
-            let (prong, blocks) = (config.prong, config.bottleneck_blocks);
-            return Err(DenoiseError::model(
-                name,
-                format!("implausible prong {prong} (an odd width from 1 to 15) or bottleneck blocks {blocks}"),
-            ));
+        if let Some(problem) = config.shape_problem() {
+            return Err(DenoiseError::model(name, problem));
         }
         let device = Device::flex();
         // burn's record reader is fenced as the other parsers are: a model file is a stranger's too.

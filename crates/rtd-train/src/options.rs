@@ -171,8 +171,8 @@ impl TrainOptions {
 
     /// What makes these options unusable on the dataset of `manifest`, if anything.
     fn problem(&self, manifest: &Manifest) -> Option<String> {
-        if self.config.channels.is_empty() {
-            return Some("the network has no resolution levels".into());
+        if let Some(problem) = self.config.shape_problem() {
+            return Some(format!("the network's shape: {problem}"));
         }
         let counts =
             [("step count", self.steps), ("epoch length", self.epoch_steps), ("batch size", self.batch as u64)];
@@ -279,7 +279,11 @@ mod tests {
         let two = TrainOptions::default().config(DenoiserConfig::new(vec![8, 8])).batch(2, 18);
         assert!(two.validate(Path::new("d"), &m).is_ok());
         let none = TrainOptions::default().config(DenoiserConfig::new(vec![])).batch(2, 16);
-        assert!(refusal(&none, &m).contains("no resolution levels"));
+        assert!(refusal(&none, &m).contains("implausible channel list []"));
+        let wide = TrainOptions::default().config(DenoiserConfig::new(vec![8, 600])).batch(2, 16);
+        assert!(refusal(&wide, &m).contains("implausible channel list [8, 600]"));
+        let deep = TrainOptions::default().config(DenoiserConfig::new(vec![8; 6])).batch(2, 16);
+        assert!(refusal(&deep, &m).contains("1 to 5 levels"));
         // Counts, rates, weights and probabilities.
         let ok = TrainOptions::default().batch(2, 16);
         assert!(refusal(&ok.clone().batch(0, 16), &m).contains("batch size is 0"));

@@ -107,6 +107,14 @@ pub struct TrainModelArgs {
     /// is the one its config describes.
     #[arg(long)]
     pub init: Option<PathBuf>,
+    /// From random weights: channels at each resolution level, full resolution first
+    /// (comma-separated; default: the shipped 24,48,64). With --init, its model sets them.
+    #[arg(long, value_delimiter = ',', conflicts_with = "init", value_parser = clap::value_parser!(u32).range(1..))]
+    pub channels: Vec<u32>,
+    /// From random weights: inception blocks at the coarsest level (default: the shipped 2).
+    /// With --init, its model sets them.
+    #[arg(long, conflicts_with = "init")]
+    pub bottleneck_blocks: Option<u32>,
     /// Divide colour by the albedo before the network and multiply it back after (saved in the
     /// model's config; with --init, the initial model may lack it).
     #[arg(long)]

@@ -89,7 +89,8 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
 }
 
 /// The library's options for `args`: the network is `--init`'s (its config read from the model
-/// file) or the shipped U-Net, with `--demodulate` and `--exposure-key` applied.
+/// file) or the shipped U-Net's shape with `--channels` and `--bottleneck-blocks` applied, with
+/// `--demodulate` and `--exposure-key` applied.
 fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
     let (schedule, model, loss) = (&args.schedule, &args.model, &args.loss);
     // A model made before the variance planes is widened to read them (its stem starts with
@@ -98,7 +99,15 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         Some(path) => {
             rtd_denoise::Denoiser::load(path)?.config().clone().with_input_channels(rtd_denoise::INPUT_CHANNELS)
         }
-        None => DenoiserConfig::unet(),
+        None => {
+            let shipped = DenoiserConfig::unet();
+            let channels = match model.channels.is_empty() {
+                true => shipped.channels.clone(),
+                false => model.channels.iter().map(|&c| c as usize).collect(),
+            };
+            let blocks = model.bottleneck_blocks.map_or(shipped.bottleneck_blocks, |b| b as usize);
+            DenoiserConfig { channels, bottleneck_blocks: blocks, ..shipped }
+        }
     };
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
     let config = match model.exposure_key {
