@@ -16,6 +16,7 @@ pub mod progress;
 pub mod render_command;
 pub mod service_args;
 pub mod service_command;
+pub mod train_args;
 pub mod train_command;
 
 pub use rtd_bench as bench;

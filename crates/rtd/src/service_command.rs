@@ -11,10 +11,10 @@ use rtd_service::{
 };
 use rtd_train::dataset::{DatasetOptions, Manifest};
 
-use crate::args::DatagenArgs;
 use crate::exit::Interrupted;
 use crate::progress::TaskBar;
 use crate::service_args::{NodeArgs, ServeArgs, WorkerArgs};
+use crate::train_args::DatagenArgs;
 
 /// Logs to standard error, at `info` unless `RUST_LOG` says otherwise.
 fn init_logging() {

@@ -7,9 +7,9 @@ use rtd_train::dataset::{generate_dataset, refresh_guides, DatasetOptions, Split
 use rtd_train::train::{EpochRecord, TrainState};
 use rtd_train::TrainOptions;
 
-use crate::args::{DatagenArgs, SplitArg, TrainArgs};
 use crate::exit::Interrupted;
 use crate::progress::TaskBar;
+use crate::train_args::{DatagenArgs, SplitArg, TrainArgs};
 use rtd_image::Progress;
 
 /// Runs `rtd datagen`.
