@@ -180,12 +180,17 @@ fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
     let too_large = rtd(&["train", "--data", d, "-o", r, "--crop", "32", "-q"]);
     assert_fails(&too_large, "crop side 32 px is larger than the dataset's 24x24 px views");
     assert_fails(&rtd(&["train", "--data", d, "-o", r, "--crop", "18", "-q"]), "not a positive multiple of 4");
-    // A network shape no model may have, and a shape beside --init (which sets it): refused.
-    assert_fails(
-        &rtd(&["train", "--data", d, "-o", r, "--channels", "8,600", "-q"]),
-        "implausible channel list [8, 600]",
-    );
-    let shipped = rtd::denoise::Denoiser::builtin().unwrap();
+    // Network shapes no model may have, and a shape beside --init (which sets it): refused.
+    let wide = rtd(&["train", "--data", d, "-o", r, "--channels", "8,600", "-q"]);
+    assert_fails(&wide, "'600' is not a channel count from 1 to 512");
+    assert_eq!(wide.status.code(), Some(2), "a usage error exits 2");
+    let blocks = rtd(&["train", "--data", d, "-o", r, "--bottleneck-blocks", "65", "-q"]);
+    assert_fails(&blocks, "'65' is not a block count from 0 to 64");
+    let quick = dir.path().join("quick-data");
+    let q = quick.to_str().unwrap();
+    let deep = rtd(&["train", "--quick", "--data", q, "-o", r, "--channels", "8,8,8,8,8,8", "-q"]);
+    assert_fails(&deep, "implausible channel list [8, 8, 8, 8, 8, 8] (1 to 5 levels");
+    assert!(!quick.exists(), "a refused --quick run made its dataset");
     let model = dir.path().join("model.bpk");
     std::fs::write(&model, b"not read").unwrap();
     let both = rtd(&["train", "--data", d, "-o", r, "--channels", "8", "--init", model.to_str().unwrap(), "-q"]);
@@ -198,7 +203,6 @@ fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
     assert!(trained.status.success(), "{}", String::from_utf8_lossy(&trained.stderr));
     let made = rtd::denoise::Denoiser::load(&run.join("model.bpk")).unwrap();
     assert_eq!((&made.config().channels, made.config().bottleneck_blocks), (&vec![8, 12], 1));
-    assert_ne!(made.config().channels, shipped.config().channels);
     let bench = rtd(&["bench", "validation", "--data", d, "--spp", "3", "-o", report.to_str().unwrap(), "-q"]);
     assert_fails(&bench, "has no noisy render at 3 spp (it has 1, 2, 4, 8, 16, 32, 64 spp)");
     assert!(!report.exists(), "a refused benchmark made {}", report.display());

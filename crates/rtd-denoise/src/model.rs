@@ -100,8 +100,8 @@ impl DenoiserConfig {
     /// What makes this shape one no model file should have and no training run should build,
     /// if anything: no levels or more than [`MAX_LEVELS`], a level of no channels or more than
     /// [`MAX_LEVEL_CHANNELS`], an even prong or one wider than 15 (an even one has no centre
-    /// tap, so its branch would come out a pixel short of the others), or more than 64
-    /// bottleneck blocks. One sentence.
+    /// tap, so its branch would come out a pixel short of the others), or more than
+    /// [`MAX_BOTTLENECK_BLOCKS`] bottleneck blocks. One sentence.
     pub fn shape_problem(&self) -> Option<String> {
         let c = &self.channels;
         if c.is_empty() || c.len() > MAX_LEVELS || c.iter().any(|&n| n == 0 || n > MAX_LEVEL_CHANNELS) {
@@ -109,11 +109,12 @@ impl DenoiserConfig {
                 "implausible channel list {c:?} (1 to {MAX_LEVELS} levels of 1 to {MAX_LEVEL_CHANNELS} channels)"
             ));
         }
-        if !(1..=15).contains(&self.prong) || self.prong.is_multiple_of(2) || self.bottleneck_blocks > 64 {
-            let (prong, blocks) = (self.prong, self.bottleneck_blocks);
-            return Some(format!(
-                "implausible prong {prong} (an odd width from 1 to 15) or bottleneck blocks {blocks} (at most 64)"
-            ));
+        if !(1..=15).contains(&self.prong) || self.prong.is_multiple_of(2) {
+            return Some(format!("implausible prong {} (an odd width from 1 to 15)", self.prong));
+        }
+        if self.bottleneck_blocks > MAX_BOTTLENECK_BLOCKS {
+            let blocks = self.bottleneck_blocks;
+            return Some(format!("implausible bottleneck of {blocks} blocks (at most {MAX_BOTTLENECK_BLOCKS})"));
         }
         None
     }
@@ -196,6 +197,8 @@ impl DenoiserConfig {
 pub const MAX_LEVELS: usize = 5;
 /// The most channels a level may have.
 pub const MAX_LEVEL_CHANNELS: usize = 512;
+/// The most inception blocks the bottleneck may have.
+pub const MAX_BOTTLENECK_BLOCKS: usize = 64;
 
 /// Dilation of the `i`th inception block at a level (after its encoder): 2, 4, 2, 4, ...
 fn block_dilation(i: usize) -> usize {

@@ -156,8 +156,8 @@ impl TrainOptions {
     }
 
     /// Checks that these options can train on the dataset in `data`, whose manifest is
-    /// `manifest`, before any view is loaded or any file written: a network with at least one
-    /// level; at least one step, epoch step and crop per batch; a finite learning rate above 0;
+    /// `manifest`, before any view is loaded or any file written: a network of a plausible
+    /// shape ([`DenoiserConfig::shape_problem`]); at least one step, epoch step and crop per batch; a finite learning rate above 0;
     /// a finite display-loss weight of at least 0; a guide-drop probability in [0, 1]; a crop
     /// side that is a positive multiple of the network's alignment and at most the dataset's
     /// view sides; training and validation sample counts the dataset stores; and training
@@ -284,6 +284,10 @@ mod tests {
         assert!(refusal(&wide, &m).contains("implausible channel list [8, 600]"));
         let deep = TrainOptions::default().config(DenoiserConfig::new(vec![8; 6])).batch(2, 16);
         assert!(refusal(&deep, &m).contains("1 to 5 levels"));
+        let blocks = TrainOptions::default().config(DenoiserConfig::new(vec![8]).with_bottleneck_blocks(65));
+        assert!(refusal(&blocks.batch(2, 16), &m).contains("implausible bottleneck of 65 blocks (at most 64)"));
+        let prong = TrainOptions::default().config(DenoiserConfig::new(vec![8]).with_prong(4)).batch(2, 16);
+        assert!(refusal(&prong, &m).contains("implausible prong 4"));
         // Counts, rates, weights and probabilities.
         let ok = TrainOptions::default().batch(2, 16);
         assert!(refusal(&ok.clone().batch(0, 16), &m).contains("batch size is 0"));

@@ -112,21 +112,22 @@ pub struct TrainScheduleArgs {
     pub lr: f64,
 }
 
-/// `rtd train`'s network: the shipped U-Net from random weights, or a model to fine-tune, with
-/// the input encoding it is trained for.
+/// `rtd train`'s network: the shipped U-Net's shape (or another) from random weights, or a model
+/// to fine-tune, with the input encoding it is trained for.
 #[derive(Debug, Clone, Args)]
 pub struct TrainModelArgs {
     /// Fine-tune: start from this model's weights (.bpk with its .json beside it); the network
     /// is the one its config describes.
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// From random weights: channels at each resolution level, full resolution first
-    /// (comma-separated; default: the shipped 24,48,64). With --init, its model sets them.
-    #[arg(long, value_delimiter = ',', conflicts_with = "init", value_parser = clap::value_parser!(u32).range(1..))]
+    /// From random weights: channels at each resolution level (1 to 5 levels), full resolution
+    /// first (comma-separated; default: the shipped 24,48,64). Not with --init, whose model
+    /// sets them.
+    #[arg(long, value_delimiter = ',', conflicts_with = "init", value_parser = level_channels)]
     pub channels: Vec<u32>,
     /// From random weights: inception blocks at the coarsest level (default: the shipped 2).
-    /// With --init, its model sets them.
-    #[arg(long, conflicts_with = "init")]
+    /// Not with --init, whose model sets them.
+    #[arg(long, conflicts_with = "init", value_parser = bottleneck_blocks)]
     pub bottleneck_blocks: Option<u32>,
     /// Divide colour by the albedo before the network and multiply it back after (saved in the
     /// model's config; with --init, the initial model may lack it).
@@ -196,5 +197,23 @@ fn f32_within(s: &str, lo: f32, hi: f32) -> Result<f32, String> {
         Ok(v)
     } else {
         Err(format!("{v} is not in [{lo}, {hi}]"))
+    }
+}
+
+/// A level's channel count, within the limits a model may have.
+fn level_channels(s: &str) -> Result<u32, String> {
+    let max = rtd_denoise::model::MAX_LEVEL_CHANNELS;
+    match s.parse::<u32>() {
+        Ok(v) if (1..=max).contains(&(v as usize)) => Ok(v),
+        _ => Err(format!("'{s}' is not a channel count from 1 to {max}")),
+    }
+}
+
+/// A bottleneck's block count, within the limits a model may have.
+fn bottleneck_blocks(s: &str) -> Result<u32, String> {
+    let max = rtd_denoise::model::MAX_BOTTLENECK_BLOCKS;
+    match s.parse::<u32>() {
+        Ok(v) if v as usize <= max => Ok(v),
+        _ => Err(format!("'{s}' is not a block count from 0 to {max}")),
     }
 }

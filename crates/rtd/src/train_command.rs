@@ -106,7 +106,12 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
                 false => model.channels.iter().map(|&c| c as usize).collect(),
             };
             let blocks = model.bottleneck_blocks.map_or(shipped.bottleneck_blocks, |b| b as usize);
-            DenoiserConfig { channels, bottleneck_blocks: blocks, ..shipped }
+            let config = DenoiserConfig { channels, bottleneck_blocks: blocks, ..shipped };
+            // Refused here too, so that `--quick` makes no dataset for a shape it cannot train.
+            if let Some(problem) = config.shape_problem() {
+                anyhow::bail!("--channels {:?}: {problem}", model.channels);
+            }
+            config
         }
     };
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
