@@ -181,15 +181,19 @@ fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
     assert_fails(&too_large, "crop side 32 px is larger than the dataset's 24x24 px views");
     assert_fails(&rtd(&["train", "--data", d, "-o", r, "--crop", "18", "-q"]), "not a positive multiple of 4");
     // Network shapes no model may have, and a shape beside --init (which sets it): refused.
-    let wide = rtd(&["train", "--data", d, "-o", r, "--channels", "8,600", "-q"]);
-    assert_fails(&wide, "'600' is not a channel count from 1 to 512");
+    use rtd::denoise::model::{MAX_BOTTLENECK_BLOCKS, MAX_LEVELS, MAX_LEVEL_CHANNELS};
+    let over = format!("8,{}", MAX_LEVEL_CHANNELS + 1);
+    let wide = rtd(&["train", "--data", d, "-o", r, "--channels", &over, "-q"]);
+    assert_fails(&wide, "--channels");
     assert_eq!(wide.status.code(), Some(2), "a usage error exits 2");
-    let blocks = rtd(&["train", "--data", d, "-o", r, "--bottleneck-blocks", "65", "-q"]);
-    assert_fails(&blocks, "'65' is not a block count from 0 to 64");
+    let many = (MAX_BOTTLENECK_BLOCKS + 1).to_string();
+    let blocks = rtd(&["train", "--data", d, "-o", r, "--bottleneck-blocks", &many, "-q"]);
+    assert_fails(&blocks, "--bottleneck-blocks");
+    assert_eq!(blocks.status.code(), Some(2), "a usage error exits 2");
     let quick = dir.path().join("quick-data");
-    let q = quick.to_str().unwrap();
-    let deep = rtd(&["train", "--quick", "--data", q, "-o", r, "--channels", "8,8,8,8,8,8", "-q"]);
-    assert_fails(&deep, "implausible channel list [8, 8, 8, 8, 8, 8] (1 to 5 levels");
+    let (q, levels) = (quick.to_str().unwrap(), ["8"; MAX_LEVELS + 1].join(","));
+    let deep = rtd(&["train", "--quick", "--data", q, "-o", r, "--channels", &levels, "-q"]);
+    assert_fails(&deep, &format!("the network's shape: implausible channel list {:?}", vec![8; MAX_LEVELS + 1]));
     assert!(!quick.exists(), "a refused --quick run made its dataset");
     let model = dir.path().join("model.bpk");
     std::fs::write(&model, b"not read").unwrap();

@@ -99,7 +99,7 @@ impl DenoiserConfig {
 
     /// What makes this shape one no model file should have and no training run should build,
     /// if anything: no levels or more than [`MAX_LEVELS`], a level of no channels or more than
-    /// [`MAX_LEVEL_CHANNELS`], an even prong or one wider than 15 (an even one has no centre
+    /// [`MAX_LEVEL_CHANNELS`], an even prong or one wider than [`MAX_PRONG`] (an even one has no centre
     /// tap, so its branch would come out a pixel short of the others), or more than
     /// [`MAX_BOTTLENECK_BLOCKS`] bottleneck blocks. One sentence.
     pub fn shape_problem(&self) -> Option<String> {
@@ -109,8 +109,8 @@ impl DenoiserConfig {
                 "implausible channel list {c:?} (1 to {MAX_LEVELS} levels of 1 to {MAX_LEVEL_CHANNELS} channels)"
             ));
         }
-        if !(1..=15).contains(&self.prong) || self.prong.is_multiple_of(2) {
-            return Some(format!("implausible prong {} (an odd width from 1 to 15)", self.prong));
+        if !(1..=MAX_PRONG).contains(&self.prong) || self.prong.is_multiple_of(2) {
+            return Some(format!("implausible prong {} (an odd width from 1 to {MAX_PRONG})", self.prong));
         }
         if self.bottleneck_blocks > MAX_BOTTLENECK_BLOCKS {
             let blocks = self.bottleneck_blocks;
@@ -197,6 +197,8 @@ impl DenoiserConfig {
 pub const MAX_LEVELS: usize = 5;
 /// The most channels a level may have.
 pub const MAX_LEVEL_CHANNELS: usize = 512;
+/// The widest 1×k prong a block may have (k odd).
+pub const MAX_PRONG: usize = 15;
 /// The most inception blocks the bottleneck may have.
 pub const MAX_BOTTLENECK_BLOCKS: usize = 64;
 

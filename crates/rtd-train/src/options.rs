@@ -157,8 +157,8 @@ impl TrainOptions {
 
     /// Checks that these options can train on the dataset in `data`, whose manifest is
     /// `manifest`, before any view is loaded or any file written: a network of a plausible
-    /// shape ([`DenoiserConfig::shape_problem`]); at least one step, epoch step and crop per batch; a finite learning rate above 0;
-    /// a finite display-loss weight of at least 0; a guide-drop probability in [0, 1]; a crop
+    /// shape ([`DenoiserConfig::shape_problem`]); at least one step, epoch step and crop per
+    /// batch; a finite learning rate above 0; a finite display-loss weight of at least 0; a guide-drop probability in [0, 1]; a crop
     /// side that is a positive multiple of the network's alignment and at most the dataset's
     /// view sides; training and validation sample counts the dataset stores; and training
     /// views. The error is [`TrainError::InvalidOptions`], naming `data`.
@@ -280,12 +280,16 @@ mod tests {
         assert!(two.validate(Path::new("d"), &m).is_ok());
         let none = TrainOptions::default().config(DenoiserConfig::new(vec![])).batch(2, 16);
         assert!(refusal(&none, &m).contains("implausible channel list []"));
-        let wide = TrainOptions::default().config(DenoiserConfig::new(vec![8, 600])).batch(2, 16);
-        assert!(refusal(&wide, &m).contains("implausible channel list [8, 600]"));
-        let deep = TrainOptions::default().config(DenoiserConfig::new(vec![8; 6])).batch(2, 16);
-        assert!(refusal(&deep, &m).contains("1 to 5 levels"));
-        let blocks = TrainOptions::default().config(DenoiserConfig::new(vec![8]).with_bottleneck_blocks(65));
-        assert!(refusal(&blocks.batch(2, 16), &m).contains("implausible bottleneck of 65 blocks (at most 64)"));
+        use rtd_denoise::model::{MAX_BOTTLENECK_BLOCKS, MAX_LEVELS, MAX_LEVEL_CHANNELS};
+        let over = MAX_LEVEL_CHANNELS + 1;
+        let wide = TrainOptions::default().config(DenoiserConfig::new(vec![8, over])).batch(2, 16);
+        assert!(refusal(&wide, &m).contains(&format!("implausible channel list [8, {over}]")));
+        let deep = TrainOptions::default().config(DenoiserConfig::new(vec![8; MAX_LEVELS + 1])).batch(2, 16);
+        assert!(refusal(&deep, &m).contains(&format!("1 to {MAX_LEVELS} levels")));
+        let (many, most) = (MAX_BOTTLENECK_BLOCKS + 1, MAX_BOTTLENECK_BLOCKS);
+        let blocks = TrainOptions::default().config(DenoiserConfig::new(vec![8]).with_bottleneck_blocks(many));
+        let expected = format!("implausible bottleneck of {many} blocks (at most {most})");
+        assert!(refusal(&blocks.batch(2, 16), &m).contains(&expected));
         let prong = TrainOptions::default().config(DenoiserConfig::new(vec![8]).with_prong(4)).batch(2, 16);
         assert!(refusal(&prong, &m).contains("implausible prong 4"));
         // Counts, rates, weights and probabilities.

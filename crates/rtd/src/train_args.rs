@@ -97,8 +97,8 @@ pub struct TrainScheduleArgs {
     /// Crops per batch.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub batch: u32,
-    /// Crop side in pixels (a multiple of the network's alignment, 4 for the U-Net, and at most
-    /// the dataset's image size).
+    /// Crop side in pixels (a multiple of the network's alignment, 2^(levels−1): 4 for the
+    /// shipped U-Net; and at most the dataset's image size).
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=1024))]
     pub crop: u32,
     /// Steps per epoch (validation + checkpoint after each).
@@ -120,14 +120,15 @@ pub struct TrainModelArgs {
     /// is the one its config describes.
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// From random weights: channels at each resolution level (1 to 5 levels), full resolution
-    /// first (comma-separated; default: the shipped 24,48,64). Not with --init, whose model
-    /// sets them.
-    #[arg(long, value_delimiter = ',', conflicts_with = "init", value_parser = level_channels)]
+    /// From random weights: channels at each resolution level, full resolution first
+    /// (comma-separated; default: the shipped 24,48,64). Not with --init, whose model sets them.
+    #[arg(long, value_delimiter = ',', conflicts_with = "init",
+          value_parser = clap::value_parser!(u32).range(1..=rtd_denoise::model::MAX_LEVEL_CHANNELS as i64))]
     pub channels: Vec<u32>,
     /// From random weights: inception blocks at the coarsest level (default: the shipped 2).
     /// Not with --init, whose model sets them.
-    #[arg(long, conflicts_with = "init", value_parser = bottleneck_blocks)]
+    #[arg(long, conflicts_with = "init",
+          value_parser = clap::value_parser!(u32).range(0..=rtd_denoise::model::MAX_BOTTLENECK_BLOCKS as i64))]
     pub bottleneck_blocks: Option<u32>,
     /// Divide colour by the albedo before the network and multiply it back after (saved in the
     /// model's config; with --init, the initial model may lack it).
@@ -181,6 +182,7 @@ fn positive_rate(s: &str) -> Result<f64, String> {
     }
 }
 
+/// An exposure key in [0.001, 1000].
 fn parse_key(s: &str) -> Result<f32, String> {
     let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
     if (1e-3..=1e3).contains(&v) {
@@ -197,23 +199,5 @@ fn f32_within(s: &str, lo: f32, hi: f32) -> Result<f32, String> {
         Ok(v)
     } else {
         Err(format!("{v} is not in [{lo}, {hi}]"))
-    }
-}
-
-/// A level's channel count, within the limits a model may have.
-fn level_channels(s: &str) -> Result<u32, String> {
-    let max = rtd_denoise::model::MAX_LEVEL_CHANNELS;
-    match s.parse::<u32>() {
-        Ok(v) if (1..=max).contains(&(v as usize)) => Ok(v),
-        _ => Err(format!("'{s}' is not a channel count from 1 to {max}")),
-    }
-}
-
-/// A bottleneck's block count, within the limits a model may have.
-fn bottleneck_blocks(s: &str) -> Result<u32, String> {
-    let max = rtd_denoise::model::MAX_BOTTLENECK_BLOCKS;
-    match s.parse::<u32>() {
-        Ok(v) if v as usize <= max => Ok(v),
-        _ => Err(format!("'{s}' is not a block count from 0 to {max}")),
     }
 }

@@ -100,16 +100,16 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
             rtd_denoise::Denoiser::load(path)?.config().clone().with_input_channels(rtd_denoise::INPUT_CHANNELS)
         }
         None => {
-            let shipped = DenoiserConfig::unet();
-            let channels = match model.channels.is_empty() {
-                true => shipped.channels.clone(),
-                false => model.channels.iter().map(|&c| c as usize).collect(),
-            };
-            let blocks = model.bottleneck_blocks.map_or(shipped.bottleneck_blocks, |b| b as usize);
-            let config = DenoiserConfig { channels, bottleneck_blocks: blocks, ..shipped };
+            let mut config = DenoiserConfig::unet();
+            if !model.channels.is_empty() {
+                config.channels = model.channels.iter().map(|&c| c as usize).collect();
+            }
+            if let Some(blocks) = model.bottleneck_blocks {
+                config.bottleneck_blocks = blocks as usize;
+            }
             // Refused here too, so that `--quick` makes no dataset for a shape it cannot train.
             if let Some(problem) = config.shape_problem() {
-                anyhow::bail!("--channels {:?}: {problem}", model.channels);
+                anyhow::bail!("the network's shape: {problem}");
             }
             config
         }
