@@ -163,14 +163,25 @@ impl TrainOptions {
     /// view sides; training and validation sample counts the dataset stores; and training
     /// views. The error is [`TrainError::InvalidOptions`], naming `data`.
     pub fn validate(&self, data: &Path, manifest: &Manifest) -> Result<(), TrainError> {
-        match self.problem(manifest) {
+        let problem = self.problem_alone().or_else(|| self.problem_on(manifest));
+        match problem {
             Some(message) => Err(TrainError::InvalidOptions { dataset: data.to_path_buf(), message }),
             None => Ok(()),
         }
     }
 
-    /// What makes these options unusable on the dataset of `manifest`, if anything.
-    fn problem(&self, manifest: &Manifest) -> Option<String> {
+    /// The checks of [`TrainOptions::validate`] that need no dataset (everything but the crop's
+    /// fit to the views, the stored sample counts and the training views), for a caller that
+    /// is about to make the dataset in `data` (`rtd train --quick`).
+    pub fn validate_alone(&self, data: &Path) -> Result<(), TrainError> {
+        match self.problem_alone() {
+            Some(message) => Err(TrainError::InvalidOptions { dataset: data.to_path_buf(), message }),
+            None => Ok(()),
+        }
+    }
+
+    /// What makes these options unusable on any dataset, if anything.
+    fn problem_alone(&self) -> Option<String> {
         if let Some(problem) = self.config.shape_problem() {
             return Some(format!("the network's shape: {problem}"));
         }
@@ -191,12 +202,19 @@ impl TrainOptions {
         if !(0.0..=1.0).contains(&self.variance_drop) {
             return Some(format!("the variance drop probability {} is not in [0, 1]", self.variance_drop));
         }
-        let (crop, align, side) = (self.crop, self.config.alignment(), manifest.options.size as usize);
+        let (crop, align) = (self.crop, self.config.alignment());
         if crop == 0 || crop % align != 0 {
             return Some(format!(
                 "the crop side {crop} px is not a positive multiple of {align}, the network's alignment"
             ));
         }
+        None
+    }
+
+    /// What makes these options unusable on the dataset of `manifest`, if anything, beyond
+    /// [`TrainOptions::problem_alone`].
+    fn problem_on(&self, manifest: &Manifest) -> Option<String> {
+        let (crop, side) = (self.crop, manifest.options.size as usize);
         if crop > side {
             return Some(format!("the crop side {crop} px is larger than the dataset's {side}x{side} px views"));
         }
@@ -292,6 +310,10 @@ mod tests {
         assert!(refusal(&blocks.batch(2, 16), &m).contains(&expected));
         let prong = TrainOptions::default().config(DenoiserConfig::new(vec![8]).with_prong(4)).batch(2, 16);
         assert!(refusal(&prong, &m).contains("implausible prong 4"));
+        // Without a dataset: the shape is checked, the crop's fit to the views is not.
+        let e = prong.validate_alone(Path::new("d")).unwrap_err().to_string();
+        assert!(e.starts_with("d: the network's shape: implausible prong 4"), "{e}");
+        assert!(TrainOptions::default().batch(2, 32).validate_alone(Path::new("d")).is_ok());
         // Counts, rates, weights and probabilities.
         let ok = TrainOptions::default().batch(2, 16);
         assert!(refusal(&ok.clone().batch(0, 16), &m).contains("batch size is 0"));
