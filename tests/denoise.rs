@@ -213,18 +213,7 @@ fn variance_planes_are_read_and_hold_to_burn_tiling_and_nan() {
             .fold(0.0, f32::max)
     };
     assert!(rel(&whole, &tiled) < 1e-4, "tiled vs untiled: {}", rel(&whole, &tiled));
-    if rel(&whole, &burn) >= 1e-4 {
-        // Seen once in CI (2026-12-06, 0.92, with tiled vs untiled within 1e-4): say which side
-        // moved by running both again.
-        let (burn2, whole2) = (model().with_burn(true).denoise(&input).unwrap(), model().denoise(&input).unwrap());
-        panic!(
-            "fast vs burn: {}; again: burn vs burn {}, fast vs fast {}, fast vs burn {}",
-            rel(&whole, &burn),
-            rel(&burn, &burn2),
-            rel(&whole, &whole2),
-            rel(&whole2, &burn2)
-        );
-    }
+    assert!(rel(&whole, &burn) < 1e-4, "fast vs burn: {}", rel(&whole, &burn));
     let without = model().denoise(&full_input(&color, &g)).unwrap();
     assert!(rel(&whole, &without) > 1e-3, "the variance planes changed nothing");
     variance.set(5, 5, Vec3::new(f32::NAN, f32::INFINITY, -1.0));

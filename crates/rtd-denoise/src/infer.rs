@@ -142,8 +142,7 @@ impl Denoiser {
     /// the inference machinery and speed measurements of other shapes run.
     pub fn untrained(config: DenoiserConfig, seed: u64) -> Self {
         let device = Device::flex();
-        device.seed(seed);
-        let net = config.init(&device);
+        let net = config.init_seeded(&device, seed);
         Self::from_net(net, config, device, &format!("untrained:{seed}"))
     }
 

@@ -124,7 +124,21 @@ impl DenoiserConfig {
         1 << (self.channels.len() - 1)
     }
 
-    /// Builds the network with random (seeded by the device) weights.
+    /// Builds the network with random weights drawn from `seed`: the same seed gives the same
+    /// weights whatever else the process does. burn's flex backend keeps one random generator
+    /// for the whole process, so seeding it and drawing the weights happen under one lock;
+    /// two threads seeding and drawing at once would otherwise interleave their draws (a test
+    /// comparing two networks made from one seed failed this way once in CI).
+    pub fn init_seeded(&self, device: &Device, seed: u64) -> DenoiserNet {
+        static BACKEND_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _held = BACKEND_RNG.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        device.seed(seed);
+        self.init(device)
+    }
+
+    /// Builds the network with random weights from the backend's generator as it stands (see
+    /// [`DenoiserConfig::init_seeded`] for reproducible ones): for a network whose weights are
+    /// loaded over them.
     pub fn init(&self, device: &Device) -> DenoiserNet {
         let c = &self.channels;
         let levels = c.len();
@@ -386,12 +400,32 @@ mod tests {
         assert!(deeper.macs_per_pixel() > u.macs_per_pixel() && deeper.receptive_radius() > u.receptive_radius());
     }
 
+    /// Threads that seed and draw networks at once still get each seed's own weights.
+    #[test]
+    fn a_seed_gives_the_same_weights_while_other_threads_draw() {
+        let config = DenoiserConfig::new(vec![8, 12]);
+        let weights = |seed: u64| -> Vec<f32> {
+            let net = config.init_seeded(&Device::flex(), seed);
+            let mut all: Vec<f32> = net.stem.weight.val().into_data().try_to_vec().unwrap();
+            all.extend(net.output.weight.val().into_data().try_to_vec::<f32>().unwrap());
+            all
+        };
+        let expected = weights(5);
+        let drawn: Vec<Vec<f32>> = std::thread::scope(|s| {
+            let threads: Vec<_> = (0..8u64)
+                .map(|t| s.spawn(move || (0..40).map(|i| weights(5 + (i + t) % 2)).collect::<Vec<_>>()))
+                .collect();
+            threads.into_iter().flat_map(|t| t.join().unwrap()).collect()
+        });
+        let fives = drawn.iter().filter(|w| **w == expected).count();
+        assert_eq!(fives, 160, "of 320 draws, 160 were from seed 5; {fives} gave its weights");
+    }
+
     #[test]
     fn a_widened_network_ignores_its_new_planes_until_trained() {
         let device = Device::flex();
-        device.seed(7);
         let narrow = DenoiserConfig::new(vec![8, 12]).with_input_channels(crate::planes::LEGACY_INPUT_CHANNELS);
-        let net = narrow.init(&device);
+        let net = narrow.init_seeded(&device, 7);
         let (h, w, c) = (8, 12, INPUT_CHANNELS);
         let values: Vec<f32> = (0..c * h * w).map(|i| (i * 37 % 101) as f32 / 50.0 - 1.0).collect();
         let full = Tensor::<4>::from_data(TensorData::new(values, [1, c, h, w]), &device);

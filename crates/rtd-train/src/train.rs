@@ -248,7 +248,7 @@ fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser
 /// network being trained.
 fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, TrainError> {
     let Some(path) = &options.init else {
-        return Ok(options.config.init(device));
+        return Ok(options.config.init_seeded(device, options.seed));
     };
     let cfg_path = path.with_extension("json");
     let text = std::fs::read_to_string(&cfg_path).map_err(|e| TrainError::io(&cfg_path, e))?;
@@ -284,7 +284,6 @@ pub fn train(
     rtd_image::create_dir_durably(out).map_err(|e| TrainError::io(out, e))?;
     let files = RunFiles::new(out);
     let device = Device::flex().autodiff();
-    device.seed(options.seed);
     let run = start_or_resume(&files, options, resume, &device)?;
     let (sampler, val_views) = load_data(data, options)?;
     let run = run_steps(run, &sampler, &val_views, &files, options, &device, progress)?;
