@@ -456,6 +456,19 @@ fn render_with_aov_adds_the_guide_layers() {
     assert_eq!(layers.get("ao.Y"), gl.get("ao.Y"));
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert!(r["guide_s"].as_f64().unwrap() > 0.0);
+    // Denoised from the colour alone (OIDN's modes go by the inputs named), the file's guide
+    // layers go unread, and rtd denoise says so; named as those inputs, they are read.
+    let (d, e) = (dir.path().join("d.exr"), exr.to_str().unwrap());
+    let alone = rtd(&["denoise", "--color", e, "-o", d.to_str().unwrap()]);
+    let said = String::from_utf8_lossy(&alone.stdout).to_string();
+    assert!(alone.status.success(), "{}", String::from_utf8_lossy(&alone.stderr));
+    assert!(
+        said.contains("from color, variance;") && said.contains("guide, albedo, normal layers, not read"),
+        "{said}"
+    );
+    let all = rtd(&["denoise", "--color", e, "--guide", e, "--albedo", e, "--normal", e, "-o", d.to_str().unwrap()]);
+    let said = String::from_utf8_lossy(&all.stdout).to_string();
+    assert!(said.contains("from color, albedo, normal, guide, variance") && !said.contains("not read"), "{said}");
 }
 
 #[test]

@@ -55,6 +55,10 @@ pub struct DenoiseOutcome {
     pub denoise_passes: usize,
     /// Which inputs were given.
     pub inputs: Vec<String>,
+    /// Guide layers the colour's EXR holds that were not given as inputs, and so not read
+    /// (`guide`, `albedo`, `normal`): an `rtd render --aov` file named as the colour alone is
+    /// denoised from its colour only, as OIDN's modes go, which can cost dB.
+    pub unread_layers: Vec<String>,
     /// Input colour values that were NaN or infinite (set to 0 or clamped).
     pub nonfinite_input_values: usize,
 }
@@ -123,6 +127,7 @@ impl DenoiseSources {
         let albedo = other(&self.albedo, Layer::Albedo, "albedo")?;
         let normal = other(&self.normal, Layer::Normal, "normal")?;
         let guide = other(&self.guide, Layer::Guide, "guide")?;
+        let unread_layers = files.exr.get(&self.color).map(|layers| self.unread_layers(layers)).unwrap_or_default();
         // The colour's EXR file, taken whole (not copied): the output is made from it.
         let color_file = color.names.and_then(|names| Some((files.exr.remove(&self.color)?, names)));
         drop(files);
@@ -152,10 +157,24 @@ impl DenoiseSources {
             guide,
             albedo_normal: albedo.zip(normal),
             inputs,
+            unread_layers,
             denoise_s,
             model: denoiser.name().to_string(),
             passes: denoiser.ensemble_passes(),
         })
+    }
+
+    /// The guide layers in the colour's EXR `layers` that were not given as inputs.
+    fn unread_layers(&self, layers: &Layers) -> Vec<String> {
+        [
+            (Layer::Guide, &self.guide, "guide"),
+            (Layer::Albedo, &self.albedo, "albedo"),
+            (Layer::Normal, &self.normal, "normal"),
+        ]
+        .into_iter()
+        .filter(|(layer, given, _)| given.is_none() && layers.find_channels(*layer, None).is_some())
+        .map(|(_, _, name)| name.to_string())
+        .collect()
     }
 
     /// The prefix the caller named for `layer`, if any.
@@ -264,6 +283,9 @@ pub struct Denoised {
     pub albedo_normal: Option<(HdrImage, HdrImage)>,
     /// Which inputs were given.
     pub inputs: Vec<String>,
+    /// Guide layers in the colour's file that were not given as inputs (see
+    /// [`DenoiseOutcome::unread_layers`]).
+    pub unread_layers: Vec<String>,
     /// Seconds in the denoiser.
     pub denoise_s: f64,
     /// The model's name.
@@ -365,6 +387,7 @@ impl Denoised {
             denoise_model: self.model.clone(),
             denoise_passes: self.passes,
             inputs: self.inputs.clone(),
+            unread_layers: self.unread_layers.clone(),
             nonfinite_input_values: self.nonfinite_input_values,
         }
     }
@@ -377,9 +400,22 @@ impl DenoiseOutcome {
             0 => String::new(),
             n => format!(" ({n} NaN/Inf input values zeroed or clamped)"),
         };
+        let unread = match self.unread_layers.as_slice() {
+            [] => String::new(),
+            names => format!(
+                "; {} also holds {} layers, not read: name it as --{} too to use them",
+                self.color,
+                names.join(", "),
+                names.join(", --")
+            ),
+        };
         format!(
-            "denoised {}x{} in {:.3} s with {}{nonfinite}",
-            self.width, self.height, self.denoise_s, self.denoise_model
+            "denoised {}x{} in {:.3} s with {} from {}{nonfinite}{unread}",
+            self.width,
+            self.height,
+            self.denoise_s,
+            self.denoise_model,
+            self.inputs.join(", ")
         )
     }
 }
