@@ -323,6 +323,42 @@ fn options_the_dataset_cannot_serve_are_refused_before_anything_is_read_or_writt
     assert!(e.contains("scene0000_v0.exr") && e.contains("no such file"), "{e}");
 }
 
+/// A training set made with `--split training` has no validation views; `validation_data`
+/// scores every epoch on another dataset's instead, and is refused, before anything is
+/// written, when that dataset has none.
+#[test]
+fn a_separate_validation_set_scores_the_epochs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (train_set, held_out) = (dir.path().join("train"), dir.path().join("held-out"));
+    let make = |path: &Path, split| {
+        let options = DatasetOptions::default().scenes(3).views_per_scene(1).size(24).reference_spp(16);
+        generate_dataset(path, &options.validation_every(3).split(split), &Quiet).unwrap()
+    };
+    assert!(make(&train_set, Split::Training).views.iter().all(|v| !v.validation));
+    assert!(make(&held_out, Split::Validation).views.iter().all(|v| v.validation));
+    let options = TrainOptions::default().config(tiny_config()).batch(2, 16).steps(2).epoch_steps(2);
+    let own = train(&train_set, &dir.path().join("own"), &options, false, &Quiet).unwrap();
+    assert_eq!(own.history[0].validation, None, "a training split has no validation views");
+    let scored = options.clone().validation_data(Some(held_out.clone()));
+    let run = train(&train_set, &dir.path().join("scored"), &scored, false, &Quiet).unwrap();
+    let v = run.history[0].validation.expect("scored on the held-out views");
+    assert!(v.psnr.is_finite() && v.noisy_psnr > 0.0, "{v:?}");
+    // The same network scored on the same views by the library's own function.
+    let views = rtd::train::data::load_views(&held_out, true).unwrap();
+    let model = rtd::denoise::Denoiser::load(&dir.path().join("scored").join("model.bpk")).unwrap();
+    let again = rtd::train::train::validation_scores(&model, &views, 8).unwrap();
+    assert!((again.psnr - v.psnr).abs() < 1e-6 && again.noisy_psnr == v.noisy_psnr, "{again:?} vs {v:?}");
+    // A validation set without validation views is refused, naming it, and nothing is written.
+    let out = dir.path().join("refused");
+    let e = train(&held_out, &out, &TrainOptions::default(), false, &Quiet);
+    assert!(e.is_err(), "a validation split has nothing to train on");
+    let e = train(&train_set, &out, &options.clone().validation_data(Some(train_set.clone())), false, &Quiet)
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with(&format!("{}: ", train_set.display())) && e.contains("no validation views"), "{e}");
+    assert!(!out.exists());
+}
+
 /// `refresh_guides` re-renders exactly the guide layers of every view and keeps the rest.
 #[test]
 fn refreshing_guides_rewrites_guide_layers_only() {

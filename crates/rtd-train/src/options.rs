@@ -54,6 +54,11 @@ pub struct TrainOptions {
     /// made before the variance planes had none to lose: their state files read 1.
     #[serde(default = "never_shown")]
     pub variance_drop: f32,
+    /// Score every epoch on the validation views of this dataset instead of the training
+    /// dataset's own: a held-out split made apart (`rtd datagen --split validation`), for a
+    /// training set made with `--split training`, which has none.
+    #[serde(default)]
+    pub validation_data: Option<PathBuf>,
 }
 
 fn never_shown() -> f32 {
@@ -82,6 +87,7 @@ impl Default for TrainOptions {
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
             variance_drop: DROP_PROBABILITY,
+            validation_data: None,
         }
     }
 }
@@ -137,6 +143,12 @@ impl TrainOptions {
     /// Sets the probability that a crop loses its variance (clamped to [0, 1]).
     pub fn variance_drop(mut self, p: f32) -> Self {
         self.variance_drop = p.clamp(0.0, 1.0);
+        self
+    }
+    /// Scores every epoch on the validation views of the dataset in `dir` (`None`: the
+    /// training dataset's own).
+    pub fn validation_data(mut self, dir: Option<PathBuf>) -> Self {
+        self.validation_data = dir;
         self
     }
     /// Sets steps per epoch.
@@ -230,16 +242,41 @@ impl TrainOptions {
                 ));
             }
         }
-        if !stored.contains(&self.validation_spp) {
-            return Some(format!(
-                "the dataset has no noisy renders at the validation sample count {} (it stores {stored:?})",
-                self.validation_spp
-            ));
+        if self.validation_data.is_none() {
+            if let Some(problem) = self.validation_problem(manifest) {
+                return Some(problem);
+            }
         }
         if !manifest.views.iter().any(|v| !v.validation) {
             return Some("the dataset has no training views".into());
         }
         None
+    }
+
+    /// Checks that the dataset `dir` given as [`TrainOptions::validation_data`], whose
+    /// manifest is `manifest`, can score the run: it has validation views, with noisy renders
+    /// at the validation sample count. The error names `dir`.
+    pub fn validate_validation_data(&self, dir: &Path, manifest: &Manifest) -> Result<(), TrainError> {
+        let problem = match manifest.views.iter().any(|v| v.validation) {
+            false => Some("the validation dataset has no validation views".to_string()),
+            true => self.validation_problem(manifest),
+        };
+        match problem {
+            Some(message) => Err(TrainError::InvalidOptions { dataset: dir.to_path_buf(), message }),
+            None => Ok(()),
+        }
+    }
+
+    /// Why the validation views of the dataset of `manifest` cannot be scored at the
+    /// validation sample count, if they cannot.
+    fn validation_problem(&self, manifest: &Manifest) -> Option<String> {
+        let stored = &manifest.noisy_spp;
+        (!stored.contains(&self.validation_spp)).then(|| {
+            format!(
+                "the dataset has no noisy renders at the validation sample count {} (it stores {stored:?})",
+                self.validation_spp
+            )
+        })
     }
 }
 

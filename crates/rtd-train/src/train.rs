@@ -281,6 +281,9 @@ pub fn train(
     progress: &dyn Progress,
 ) -> Result<TrainState, TrainError> {
     options.validate(data, &Manifest::load(data)?)?;
+    if let Some(dir) = &options.validation_data {
+        options.validate_validation_data(dir, &Manifest::load(dir)?)?;
+    }
     rtd_image::create_dir_durably(out).map_err(|e| TrainError::io(out, e))?;
     let files = RunFiles::new(out);
     let device = Device::flex().autodiff();
@@ -352,7 +355,7 @@ fn removed_option(state_json: &str) -> Option<String> {
 /// The crop sampler over the dataset's training views, and its validation views.
 fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<View>), TrainError> {
     let train_views = load_views(data, false)?;
-    let val_views = load_views(data, true)?;
+    let val_views = load_views(options.validation_data.as_deref().unwrap_or(data), true)?;
     let sampler =
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
             .drop_probability(options.guide_drop)

@@ -77,6 +77,11 @@ pub struct TrainArgs {
     /// The loss and the inputs it is computed on.
     #[command(flatten)]
     pub loss: TrainLossArgs,
+    /// Score every epoch on the validation views of this dataset (made apart, e.g. by `rtd
+    /// datagen --split validation`) instead of --data's own, which a `--split training` set
+    /// lacks. Part of the run's options: --resume needs it again.
+    #[arg(long)]
+    pub validation_data: Option<PathBuf>,
     /// Continue the run in --output after an interruption.
     #[arg(long)]
     pub resume: bool,

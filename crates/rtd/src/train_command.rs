@@ -125,6 +125,7 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         .spp_levels((!loss.spp_levels.is_empty()).then(|| loss.spp_levels.clone()))
         .guide_drop(loss.guide_drop)
         .variance_drop(loss.variance_drop)
+        .validation_data(args.validation_data.clone())
         .seed(schedule.seed)
         .steps(schedule.steps)
         .batch(schedule.batch as usize, schedule.crop as usize)
