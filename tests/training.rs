@@ -125,15 +125,21 @@ fn quick_training_lowers_the_loss_and_writes_a_model_and_curves() {
     assert!(rtd::denoise::Denoiser::load(&out.join("model.bpk")).is_ok());
 }
 
-/// Progress that asks training to stop once `limit` steps are done (a user's Ctrl-C, on cue).
+/// Progress that asks training to stop once `limit` steps are done (a user's Ctrl-C, on cue),
+/// and, when watching a file, notes whether it existed at that moment.
 struct StopAt {
     done: std::sync::atomic::AtomicU64,
     limit: u64,
+    watched: Option<std::path::PathBuf>,
+    seen: std::sync::Mutex<Option<bool>>,
 }
 
 impl StopAt {
     fn steps(limit: u64) -> Self {
-        StopAt { done: 0.into(), limit }
+        StopAt { done: 0.into(), limit, watched: None, seen: None.into() }
+    }
+    fn watching(self, file: std::path::PathBuf) -> Self {
+        StopAt { watched: Some(file), ..self }
     }
 }
 
@@ -142,7 +148,11 @@ impl rtd::image::Progress for StopAt {
         self.done.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
     }
     fn cancelled(&self) -> bool {
-        self.done.load(std::sync::atomic::Ordering::SeqCst) >= self.limit
+        let stop = self.done.load(std::sync::atomic::Ordering::SeqCst) >= self.limit;
+        if let (true, Some(file)) = (stop, &self.watched) {
+            self.seen.lock().unwrap().get_or_insert(file.exists());
+        }
+        stop
     }
 }
 
@@ -155,10 +165,13 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     let a = train(&data, &dir.path().join("a"), &options, false, &Quiet).unwrap();
     let b = train(&data, &dir.path().join("b"), &options, false, &Quiet).unwrap();
     assert_eq!(a.losses, b.losses, "same seed, same losses");
-    // Stop after the first epoch (3 steps), then resume.
+    // Stop after the first epoch (3 steps), then resume. The curves are on disk as soon as
+    // the epoch's checkpoint is (a run killed later keeps them).
     let c_dir = dir.path().join("c");
-    let partial = train(&data, &c_dir, &options, false, &StopAt::steps(3)).unwrap();
+    let stop = StopAt::steps(3).watching(c_dir.join("curves.png"));
+    let partial = train(&data, &c_dir, &options, false, &stop).unwrap();
     assert_eq!(partial.step, 3);
+    assert_eq!(*stop.seen.lock().unwrap(), Some(true), "curves.png was not written with the first epoch");
     assert!(train(&data, &c_dir, &options, false, &Quiet).is_err(), "an existing run needs --resume");
     let resumed = train(&data, &c_dir, &options, true, &Quiet).unwrap();
     assert_eq!(resumed.step, 6);

@@ -1,6 +1,7 @@
 //! Self-contained training for rtd's denoiser: the procedural scene generator
 //! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]), the training loop
-//! ([`train`]) with its [`TrainOptions`] ([`options`]) and its curves ([`plot`]). The validation
+//! ([`train`]) with its [`TrainOptions`] ([`options`]), the run's record ([`run_state`]) and its
+//! curves ([`plot`]). The validation
 //! benchmark that scores a model on a dataset's held-out views is `rtd_bench::validation`.
 
 #![warn(missing_docs)]
@@ -9,6 +10,7 @@ pub mod data;
 pub mod dataset;
 pub mod options;
 pub mod plot;
+pub mod run_state;
 pub mod scenegen;
 pub mod train;
 

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use rtd_plot::{write_charts, Chart, Series};
 
-use crate::train::TrainState;
+use crate::run_state::TrainState;
 use crate::TrainError;
 
 /// The charts of a run: the loss (smoothed over 20 steps), and validation PSNR per validated
@@ -43,7 +43,7 @@ pub fn write_training_curves(path: &Path, state: &TrainState) -> Result<(), Trai
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::train::{EpochRecord, ValidationScores};
+    use crate::run_state::{EpochRecord, ValidationScores};
     use crate::TrainOptions;
 
     /// A run of two epochs; `validated` says whether they were scored on validation views.

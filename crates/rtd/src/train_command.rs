@@ -79,7 +79,6 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
     }
     let state = rtd_train::train::train(&args.data, &args.output, &options, args.resume, &bar)?;
     bar.finish();
-    rtd_train::plot::write_training_curves(&args.output.join("curves.png"), &state)?;
     if state.step < options.steps {
         let kept = format!("at step {}: the checkpoint is kept; rerun with --resume to continue", state.step);
         return Err(Interrupted(kept).into());
