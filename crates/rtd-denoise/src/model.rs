@@ -126,20 +126,27 @@ impl DenoiserConfig {
 
     /// Builds the network with random weights drawn from `seed`: the same seed gives the same
     /// weights whatever else the process does. burn's flex backend keeps one random generator
-    /// for the whole process, so seeding it and drawing the weights happen under one lock;
-    /// two threads seeding and drawing at once would otherwise interleave their draws (a test
-    /// comparing two networks made from one seed failed this way once in CI).
+    /// for the whole process, so seeding it and drawing the weights happen under one lock,
+    /// which every other draw of weights here ([`DenoiserConfig::init`]) takes too; threads
+    /// seeding and drawing at once would otherwise interleave their draws (a test comparing
+    /// two networks made from one seed failed this way once in CI).
     pub fn init_seeded(&self, device: &Device, seed: u64) -> DenoiserNet {
-        static BACKEND_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
-        let _held = BACKEND_RNG.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let _held = backend_rng();
         device.seed(seed);
-        self.init(device)
+        self.build(device)
     }
 
     /// Builds the network with random weights from the backend's generator as it stands (see
     /// [`DenoiserConfig::init_seeded`] for reproducible ones): for a network whose weights are
-    /// loaded over them.
+    /// loaded over them. It draws under the same lock as [`DenoiserConfig::init_seeded`], so it
+    /// never takes draws from a seeded one.
     pub fn init(&self, device: &Device) -> DenoiserNet {
+        let _held = backend_rng();
+        self.build(device)
+    }
+
+    /// The network with weights from the backend's generator; the caller holds [`backend_rng`].
+    fn build(&self, device: &Device) -> DenoiserNet {
         let c = &self.channels;
         let levels = c.len();
         let stem = conv(self.input_channels, c[0], 3, 1, device);
@@ -205,6 +212,13 @@ impl DenoiserConfig {
         }
         m + (c[0] * 3) as f64
     }
+}
+
+/// The lock on burn flex's process-wide random generator, held while a network's weights are
+/// drawn (its parameters are made and initialised within [`DenoiserConfig::init`]).
+fn backend_rng() -> std::sync::MutexGuard<'static, ()> {
+    static BACKEND_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    BACKEND_RNG.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// The most resolution levels a network may have.
@@ -412,6 +426,8 @@ mod tests {
         };
         let expected = weights(5);
         let drawn: Vec<Vec<f32>> = std::thread::scope(|s| {
+            // Unseeded draws (a network whose weights will be loaded over them) alongside.
+            s.spawn(|| (0..40).for_each(|_| drop(config.init(&Device::flex()))));
             let threads: Vec<_> = (0..8u64)
                 .map(|t| s.spawn(move || (0..40).map(|i| weights(5 + (i + t) % 2)).collect::<Vec<_>>()))
                 .collect();
