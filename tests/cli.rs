@@ -195,6 +195,10 @@ fn train_and_bench_validation_refuse_what_a_tiny_dataset_cannot_serve() {
     let deep = rtd(&["train", "--quick", "--data", q, "-o", r, "--channels", &levels, "-q"]);
     assert_fails(&deep, &format!("the network's shape: implausible channel list {:?}", vec![8; MAX_LEVELS + 1]));
     assert!(!quick.exists(), "a refused --quick run made its dataset");
+    let scored = rtd(&["train", "--quick", "--data", q, "-o", r, "--validation-data", d, "-q"]);
+    assert_fails(&scored, "--validation-data");
+    assert_eq!(scored.status.code(), Some(2), "a usage error exits 2");
+    assert!(!quick.exists(), "a refused --quick run made its dataset");
     let model = dir.path().join("model.bpk");
     std::fs::write(&model, b"not read").unwrap();
     let both = rtd(&["train", "--data", d, "-o", r, "--channels", "8", "--init", model.to_str().unwrap(), "-q"]);

@@ -173,6 +173,9 @@ fn training_is_deterministic_and_resuming_matches_an_uninterrupted_run() {
     assert_eq!(partial.step, 3);
     assert_eq!(*stop.seen.lock().unwrap(), Some(true), "curves.png was not written with the first epoch");
     assert!(train(&data, &c_dir, &options, false, &Quiet).is_err(), "an existing run needs --resume");
+    let other = options.clone().steps(7).validation_data(Some(data.clone()));
+    let e = train(&data, &c_dir, &other, true, &Quiet).unwrap_err().to_string();
+    assert!(e.contains("other training options (they differ in: steps, validation_data)"), "{e}");
     let resumed = train(&data, &c_dir, &options, true, &Quiet).unwrap();
     assert_eq!(resumed.step, 6);
     assert_eq!(resumed.losses, a.losses, "a resumed run continues exactly");
@@ -363,8 +366,8 @@ fn a_separate_validation_set_scores_the_epochs() {
     assert!((again.psnr - v.psnr).abs() < 1e-6 && again.noisy_psnr == v.noisy_psnr, "{again:?} vs {v:?}");
     // A validation set without validation views is refused, naming it, and nothing is written.
     let out = dir.path().join("refused");
-    let e = train(&held_out, &out, &TrainOptions::default(), false, &Quiet);
-    assert!(e.is_err(), "a validation split has nothing to train on");
+    let e = train(&held_out, &out, &options, false, &Quiet).unwrap_err().to_string();
+    assert!(e.contains("no training views"), "a validation split has nothing to train on: {e}");
     let e = train(&train_set, &out, &options.clone().validation_data(Some(train_set.clone())), false, &Quiet)
         .unwrap_err()
         .to_string();

@@ -164,17 +164,16 @@ impl DenoiseSources {
         })
     }
 
-    /// The guide layers in the colour's EXR `layers` that were not given as inputs.
+    /// The guide layers in the colour's EXR `layers` that were not given as inputs and could
+    /// be: a normal only beside an albedo (given, or unread in the same file), which it needs.
     fn unread_layers(&self, layers: &Layers) -> Vec<String> {
-        [
-            (Layer::Guide, &self.guide, "guide"),
-            (Layer::Albedo, &self.albedo, "albedo"),
-            (Layer::Normal, &self.normal, "normal"),
-        ]
-        .into_iter()
-        .filter(|(layer, given, _)| given.is_none() && layers.find_channels(*layer, None).is_some())
-        .map(|(_, _, name)| name.to_string())
-        .collect()
+        let has = |layer| layers.find_channels(layer, None).is_some();
+        let albedo = self.albedo.is_some() || has(Layer::Albedo);
+        [(Layer::Guide, &self.guide, true), (Layer::Albedo, &self.albedo, true), (Layer::Normal, &self.normal, albedo)]
+            .into_iter()
+            .filter(|(layer, given, usable)| given.is_none() && *usable && has(*layer))
+            .map(|(layer, _, _)| layer.prefix())
+            .collect()
     }
 
     /// The prefix the caller named for `layer`, if any.
@@ -466,5 +465,27 @@ mod tests {
         for (g, a, n) in [(false, false, true), (true, false, true)] {
             assert!(matches!(with(g, a, n).check(), Err(PipelineError::Sources(_))), "{g} {a} {n}");
         }
+    }
+
+    /// A 2×2 layer set holding these of rtd's guide layers beside the colour.
+    fn layers(with: &[Layer]) -> Layers {
+        let mut l = Layers::new(2, 2);
+        l.put_image(Layer::Beauty, &HdrImage::new(2, 2));
+        with.iter().for_each(|&layer| l.put_image(layer, &HdrImage::new(2, 2)));
+        l
+    }
+
+    #[test]
+    fn unread_layers_are_the_ones_that_could_be_read() {
+        let colour_alone = DenoiseSources::new("r.exr");
+        let (guide, albedo, normal) = (Layer::Guide, Layer::Albedo, Layer::Normal);
+        assert_eq!(colour_alone.unread_layers(&layers(&[guide, albedo, normal])), ["guide", "albedo", "normal"]);
+        assert_eq!(colour_alone.unread_layers(&layers(&[])), Vec::<String>::new());
+        // A normal needs an albedo: without one in the file or given, it is not offered.
+        assert_eq!(colour_alone.unread_layers(&layers(&[guide, normal])), ["guide"]);
+        let with_albedo = DenoiseSources::new("r.exr").albedo(Some("a.exr".into()));
+        assert_eq!(with_albedo.unread_layers(&layers(&[guide, normal])), ["guide", "normal"]);
+        let all = with_albedo.guide(Some("r.exr".into())).normal(Some("r.exr".into()));
+        assert_eq!(all.unread_layers(&layers(&[guide, albedo, normal])), Vec::<String>::new());
     }
 }

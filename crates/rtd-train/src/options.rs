@@ -14,7 +14,8 @@ use crate::TrainError;
 /// What a training run does: the network, the schedule, the loss and the crops. Start from
 /// [`TrainOptions::default`] and change fields with the chained setters below, e.g.
 /// `TrainOptions::default().steps(500).batch(4, 32)`; [`TrainOptions::validate`] checks the
-/// result against a dataset, and [`train`] calls it before it writes anything.
+/// result against a dataset, [`TrainOptions::validate_validation_data`] against a separate
+/// validation dataset, and [`train`] calls both before it writes anything.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TrainOptions {
     /// The network to train (saved as `model.json` at the end).
@@ -170,10 +171,13 @@ impl TrainOptions {
     /// Checks that these options can train on the dataset in `data`, whose manifest is
     /// `manifest`, before any view is loaded or any file written: a network of a plausible
     /// shape ([`DenoiserConfig::shape_problem`]); at least one step, epoch step and crop per
-    /// batch; a finite learning rate above 0; a finite display-loss weight of at least 0; a guide-drop probability in [0, 1]; a crop
-    /// side that is a positive multiple of the network's alignment and at most the dataset's
-    /// view sides; training and validation sample counts the dataset stores; and training
-    /// views. The error is [`TrainError::InvalidOptions`], naming `data`.
+    /// batch; a finite learning rate above 0; a finite display-loss weight of at least 0;
+    /// guide- and variance-drop probabilities in [0, 1]; a crop side that is a positive
+    /// multiple of the network's alignment and at most the dataset's view sides; training
+    /// sample counts the dataset stores, and the validation one unless
+    /// [`TrainOptions::validation_data`] names another dataset (which
+    /// [`TrainOptions::validate_validation_data`] checks); and training views. The error is
+    /// [`TrainError::InvalidOptions`], naming `data`.
     pub fn validate(&self, data: &Path, manifest: &Manifest) -> Result<(), TrainError> {
         let problem = self.problem_alone().or_else(|| self.problem_on(manifest));
         match problem {
@@ -183,8 +187,9 @@ impl TrainOptions {
     }
 
     /// The checks of [`TrainOptions::validate`] that need no dataset (everything but the crop's
-    /// fit to the views, the stored sample counts and the training views), for a caller that
-    /// is about to make the dataset in `data` (`rtd train --quick`).
+    /// fit to the views, the stored sample counts and the training views; nor the validation
+    /// dataset), for a caller that is about to make the dataset in `data` (`rtd train
+    /// --quick`).
     pub fn validate_alone(&self, data: &Path) -> Result<(), TrainError> {
         match self.problem_alone() {
             Some(message) => Err(TrainError::InvalidOptions { dataset: data.to_path_buf(), message }),
@@ -378,5 +383,17 @@ mod tests {
         let mut held_out = manifest(24);
         held_out.views.retain(|v| v.validation);
         assert!(refusal(&ok, &held_out).contains("no training views"));
+        // With a separate validation dataset, the validation sample count is that dataset's
+        // business: the training set need not store it, the validation set must, and it must
+        // have validation views.
+        let elsewhere = TrainOptions { validation_spp: 5, ..ok.clone() }.validation_data(Some("v".into()));
+        assert!(elsewhere.validate(Path::new("d"), &m).is_ok());
+        let e = elsewhere.validate_validation_data(Path::new("v"), &m).unwrap_err().to_string();
+        assert!(e.starts_with("v: ") && e.contains("validation sample count 5"), "{e}");
+        let mut training_only = manifest(24);
+        training_only.views.retain(|v| !v.validation);
+        let e = ok.validate_validation_data(Path::new("v"), &training_only).unwrap_err().to_string();
+        assert_eq!(e, "v: the validation dataset has no validation views");
+        assert!(ok.validate_validation_data(Path::new("v"), &m).is_ok());
     }
 }

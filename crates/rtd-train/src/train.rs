@@ -121,7 +121,9 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing
 /// checkpoints, `state.json` and `curves.png` after every epoch (the curves again when it
 /// stops), and finally `model.bpk` + `model.json` into `out`. The options
-/// are checked first ([`TrainOptions::validate`]), before `out` is created.
+/// are checked first ([`TrainOptions::validate`], and
+/// [`TrainOptions::validate_validation_data`] when they name a validation dataset), before
+/// `out` is created.
 pub fn train(
     data: &Path,
     out: &Path,
@@ -165,7 +167,9 @@ fn start_or_resume(files: &RunFiles, options: &TrainOptions, resume: bool, devic
     }
     let state: TrainState = serde_json::from_str(&text).map_err(|e| TrainError::msg(&files.state, e.to_string()))?;
     if state.options != *options {
-        return Err(TrainError::msg(&files.state, "was written with other training options"));
+        let differing = differing_options(&state.options, options).join(", ");
+        let message = format!("was written with other training options (they differ in: {differing})");
+        return Err(TrainError::msg(&files.state, message));
     }
     let (weights, optimizer) = (files.weights(state.step), files.optimizer(state.step));
     let record = load_fenced(&weights, || ModuleRecord::load(&weights))?;
@@ -176,6 +180,13 @@ fn start_or_resume(files: &RunFiles, options: &TrainOptions, resume: bool, devic
     // A run killed between naming a checkpoint and removing the older ones left those behind.
     files.remove_all_but(state.step);
     Ok(Run { net, optim, state })
+}
+
+/// The names of the options (as `state.json` writes them) in which `a` and `b` differ.
+fn differing_options(a: &TrainOptions, b: &TrainOptions) -> Vec<String> {
+    let (a, b) = (serde_json::to_value(a).unwrap_or_default(), serde_json::to_value(b).unwrap_or_default());
+    let (Some(a), Some(b)) = (a.as_object(), b.as_object()) else { return vec![] };
+    a.keys().chain(b.keys().filter(|k| !a.contains_key(*k))).filter(|k| a.get(*k) != b.get(*k)).cloned().collect()
 }
 
 /// A record read from `path` by burn's reader, fenced as every parser of a file is (a damaged
@@ -253,8 +264,11 @@ fn run_steps(
             progress.note(&epoch_line(&record));
             run.state.history.push(record);
             checkpoint(files, &run.net, &run.optim, &run.state)?;
-            // The curves so far, so a long run can be watched (and one killed keeps them).
-            crate::plot::write_training_curves(&files.curves(), &run.state)?;
+            // The curves so far, so a long run can be watched (and one killed keeps them). The
+            // checkpoint is safe, so a curve that cannot be written is reported, not fatal.
+            if let Err(e) = crate::plot::write_training_curves(&files.curves(), &run.state) {
+                progress.note(&format!("warning: {e}"));
+            }
             epoch_losses.clear();
             epoch_start = Instant::now();
         }

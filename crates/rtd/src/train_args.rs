@@ -79,8 +79,9 @@ pub struct TrainArgs {
     pub loss: TrainLossArgs,
     /// Score every epoch on the validation views of this dataset (made apart, e.g. by `rtd
     /// datagen --split validation`) instead of --data's own, which a `--split training` set
-    /// lacks. Part of the run's options: --resume needs it again.
-    #[arg(long)]
+    /// lacks. Part of the run's options: --resume needs it again. Not with --quick, which
+    /// scores its own tiny dataset.
+    #[arg(long, conflicts_with = "quick")]
     pub validation_data: Option<PathBuf>,
     /// Continue the run in --output after an interruption.
     #[arg(long)]

@@ -62,7 +62,8 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
 }
 
 /// Runs `rtd train` and returns the final state: the options from `args` (`--quick` first makes
-/// its tiny dataset and shrinks the run), the library's training, then the curves and a summary.
+/// its tiny dataset and shrinks the run), the library's training (which writes the curves),
+/// then a summary.
 /// The library checks the options against the dataset before it writes anything.
 pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
     let bar = TaskBar::new(args.quiet);
