@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Where one denoiser's error exceeds another's, by spatial scale.
 
-Usage: python3 benches/error_by_scale.py DATA A_DIR B_DIR [--radii 0,2,4,8]
+Usage: python3 benches/error_by_scale.py DATA A_DIR B_DIR [--radii 1,2,4,8] [--border 8]
 Needs `pip install OpenEXR numpy`.
 
 DATA is a dataset made by `rtd datagen` (its views' `reference` layer is the target); A_DIR and
@@ -9,12 +9,14 @@ B_DIR hold one denoised EXR per validation view, named as the view (`rtd bench v
 --save-images A_DIR` writes rtd's; `benches/oidn_compare.py DATA B_DIR` writes OIDN's). Each
 image goes through the display transform the validation PSNR uses (clamp to [0, 1], sRGB). The
 error image (output − reference) is then box-filtered with radius r (a (2r+1)² mean, edges
-repeated), which keeps the error's content at scales of about 2r+1 pixels and above. For each
-radius the script prints the mean over views of A's filtered MSE ÷ B's, the ratio of their sums,
-and the share of each one's total MSE that survives the filter. A ratio that grows with the
-radius means A's extra error lies more in low frequencies (blotches) than in fine detail.
+repeated), which keeps the error's content at scales of about 2r+1 pixels and above, and the
+MSE is taken inside a --border (default 8 px, as `rtd bench validation` crops). For the
+unfiltered error and each radius the script prints the mean over views of A's MSE ÷ B's, the
+ratio of their sums, and the share of each one's unfiltered MSE that survives the filter. A
+ratio that grows with the radius means A's extra error lies more in low frequencies (blotches)
+than in fine detail.
 """
-import argparse, glob, json, os
+import argparse, glob, json, os, sys
 
 import numpy as np
 import OpenEXR
@@ -49,9 +51,11 @@ def main():
     ap.add_argument("data")
     ap.add_argument("a")
     ap.add_argument("b")
-    ap.add_argument("--radii", default="0,2,4,8")
+    ap.add_argument("--radii", default="1,2,4,8")
+    ap.add_argument("--border", type=int, default=8)
     args = ap.parse_args()
-    radii = [int(r) for r in args.radii.split(",")]
+    radii = [0] + [int(r) for r in args.radii.split(",") if int(r) > 0]
+    inside = (slice(args.border, -args.border or None),) * 2
     mse = []  # views × radii × (A, B)
     for view in sorted(glob.glob(os.path.join(args.data, "views", "*.exr"))):
         name = os.path.basename(view)
@@ -60,7 +64,9 @@ def main():
             continue
         ref = display(rgb(view, "reference"))
         errors = [display(rgb(a_path)) - ref, display(rgb(b_path)) - ref]
-        mse.append([[np.mean((box(e, r) if r else e) ** 2) for e in errors] for r in radii])
+        mse.append([[np.mean(((box(e, r) if r else e)[inside]) ** 2) for e in errors] for r in radii])
+    if not mse:
+        sys.exit(f"no view of {args.data} has an output in both {args.a} and {args.b}")
     mse = np.array(mse)
     rows = []
     for i, r in enumerate(radii):
