@@ -64,6 +64,11 @@ async fn denoise_result_equals_the_cli(db: Db) {
     assert_eq!(headers["location"], format!("/jobs/{key}"));
     let st = wait_done(&s.base, &key, Duration::from_secs(60)).await;
     assert_eq!((st["width"].as_i64(), st["height"].as_i64(), st["progress"].as_f64()), (Some(40), Some(40), Some(1.0)));
+    // The job page says what the result was made from.
+    assert!(st["timings"]["inputs"].as_str().is_some_and(|i| i.starts_with("color, guide")), "{st}");
+    // rtd render writes the first hit's albedo and normal beside the colour; not uploaded as
+    // their inputs, they are not read, and the page says so.
+    assert_eq!(st["timings"]["unread_layers"], "albedo, normal", "{st}");
     let (cli_exr, cli_png) = cli_denoise(&color, &guide);
     assert_eq!(
         get_bytes(&s.base, &format!("/api/jobs/{key}/result.exr")).await,

@@ -142,7 +142,17 @@ fn denoise(
     let (exr, png, input) = (dir.join("result.exr"), dir.join("result.png"), dir.join("input.png"));
     denoised.write(&png, 0.0)?;
     rtd_image::write_ldr(&input, &denoised.color, 0.0, Tonemap::Clamp).map_err(rtd_pipeline::PipelineError::from)?;
-    let timings = serde_json::json!({ "denoise_s": denoised.denoise_s, "model": denoised.model }).to_string();
+    // What the job page shows beside the result: the time, the model, the inputs read, and
+    // guide layers the colour's file holds that were not uploaded as their inputs.
+    let mut timings = serde_json::json!({
+        "denoise_s": denoised.denoise_s,
+        "model": denoised.model,
+        "inputs": denoised.inputs.join(", "),
+    });
+    if !denoised.unread_layers.is_empty() {
+        timings["unread_layers"] = denoised.unread_layers.join(", ").into();
+    }
+    let timings = timings.to_string();
     let size = (denoised.image.width, denoised.image.height);
     // Last, consuming the result: the EXR is made in the colour file's own channels.
     denoised.write_into(&exr, 0.0)?;
