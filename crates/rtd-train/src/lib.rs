@@ -1,8 +1,8 @@
 //! Self-contained training for rtd's denoiser: the procedural scene generator
 //! ([`scenegen`]), dataset rendering ([`dataset`]), batches ([`data`]), the training loop
-//! ([`train`]) with its [`TrainOptions`] ([`options`]), the run's record ([`run_state`]) and its
-//! curves ([`plot`]). The validation
-//! benchmark that scores a model on a dataset's held-out views is `rtd_bench::validation`.
+//! ([`train`]) with its [`TrainOptions`] ([`options`]), the run's record ([`run_state`]) and
+//! its curves ([`plot`]). The validation benchmark that scores a model on a dataset's held-out
+//! views is `rtd_bench::validation`.
 
 #![warn(missing_docs)]
 
