@@ -208,6 +208,9 @@ fn draw(chart: &Chart, area: &Area) -> Result<(), String> {
         let colour = COLOURS[i % COLOURS.len()];
         if s.markers_only {
             ctx.draw_series(points.iter().map(|p| Circle::new(*p, 6, colour.filled()))).map_err(|e| e.to_string())?;
+        } else if points.len() == 1 {
+            // A line of one point (a run's first validated epoch) would draw nothing: a dot.
+            ctx.draw_series(points.iter().map(|p| Circle::new(*p, 3, colour.filled()))).map_err(|e| e.to_string())?;
         } else {
             ctx.draw_series(LineSeries::new(points, colour.stroke_width(2))).map_err(|e| e.to_string())?;
         }
@@ -262,6 +265,17 @@ mod tests {
         // The line is drawn in the plot, and the legend swatch below it.
         assert!(img.enumerate_pixels().any(|(_, y, p)| y < CHART.1 && blue(p)));
         assert!(img.enumerate_pixels().any(|(_, y, p)| y >= CHART.1 && blue(p)));
+    }
+
+    #[test]
+    fn a_line_of_one_point_is_drawn_as_a_dot() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.png");
+        let chart = Chart::new("validation", "step", "PSNR (dB)").with(Series::line("denoised", vec![(500.0, 24.3)]));
+        write_charts(&path, &[chart]).unwrap();
+        let img = image::open(&path).unwrap().to_rgb8();
+        let blue = |p: &image::Rgb<u8>| p.0 == [31, 119, 180];
+        assert!(img.enumerate_pixels().any(|(_, y, p)| y < CHART.1 && blue(p)), "the point is not drawn");
     }
 
     #[test]
