@@ -126,18 +126,18 @@ impl RunFiles {
     /// The weights after `step` steps (or a run's from before checkpoint folders, which kept
     /// one `checkpoint.bpk`).
     pub(crate) fn weights(&self, step: u64) -> PathBuf {
-        let path = self.checkpoint(step).join("weights.bpk");
-        let legacy = self.out.join("checkpoint.bpk");
-        if !path.exists() && legacy.exists() {
-            return legacy;
-        }
-        path
+        self.in_checkpoint_or_legacy(step, "weights.bpk", "checkpoint.bpk")
     }
 
     /// The optimiser state after `step` steps (or a legacy run's `optimizer.bpk`).
     pub(crate) fn optimizer(&self, step: u64) -> PathBuf {
-        let path = self.checkpoint(step).join("optimizer.bpk");
-        let legacy = self.out.join("optimizer.bpk");
+        self.in_checkpoint_or_legacy(step, "optimizer.bpk", "optimizer.bpk")
+    }
+
+    /// File `name` of the checkpoint after `step` steps, or the legacy file `legacy` in the
+    /// run's folder when only that exists.
+    fn in_checkpoint_or_legacy(&self, step: u64, name: &str, legacy: &str) -> PathBuf {
+        let (path, legacy) = (self.checkpoint(step).join(name), self.out.join(legacy));
         if !path.exists() && legacy.exists() {
             return legacy;
         }

@@ -141,7 +141,10 @@ pub fn train(
     let run = start_or_resume(&files, options, resume, &device)?;
     let (sampler, val_views) = load_data(data, options)?;
     let run = run_steps(run, &sampler, &val_views, &files, options, &device, progress)?;
-    crate::plot::write_training_curves(&files.curves(), &run.state)?;
+    // The last epoch's curves are on disk already unless steps followed it (a stop mid-epoch).
+    if run.state.history.last().map(|h| h.step) != Some(run.state.step) {
+        crate::plot::write_training_curves(&files.curves(), &run.state)?;
+    }
     if run.state.step >= options.steps {
         save_model(out, &run.net, &options.config)?;
     }
