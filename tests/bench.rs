@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use rtd::bench::reference::ReferenceOptions;
 use rtd::bench::report_files::write_etrt;
 use rtd::bench::{run_etrt, EtrtOptions};
 use rtd::denoise::Denoiser;
@@ -10,12 +11,33 @@ use rtd::image::Quiet;
 use rtd::pipeline::{CameraChoice, SceneView};
 
 #[test]
+fn a_reference_doubles_until_converged_or_capped_and_rounds_do_not_change_it() {
+    use rtd::bench::reference::render_reference;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
+    let scene = SceneView::load(&path, &CameraChoice::Default, None).unwrap();
+    let size = (16, 16, 7);
+    let start = ReferenceOptions::default().spp(4).max_spp(16);
+    // A target no render meets doubles 4 → 8 → 16 and stops at the cap.
+    let (doubled, spp, noise) = render_reference(&scene, size, &start.relmse(1e-30), &Quiet).unwrap();
+    assert_eq!(spp, 16);
+    // The same 16 spp in one round are the same image: doubling continues the same films.
+    let (direct, direct_spp, direct_noise) = render_reference(&scene, size, &start.spp(16), &Quiet).unwrap();
+    assert_eq!(direct_spp, 16);
+    assert_eq!(doubled.pixels, direct.pixels);
+    assert_eq!(noise, direct_noise);
+    // A target already met stops after the first round, with a larger estimate.
+    let (_, first_spp, first_noise) = render_reference(&scene, size, &start.relmse(1e30), &Quiet).unwrap();
+    assert_eq!(first_spp, 4);
+    assert!(first_noise > noise && noise > 0.0, "{first_noise} then {noise}");
+}
+
+#[test]
 fn etrt_report_has_every_image_and_consistent_numbers() {
     let dir = tempfile::tempdir().unwrap();
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
     let scene = SceneView::load(&path, &CameraChoice::Default, None).unwrap();
-    let options =
-        EtrtOptions { spp: 2, width: 32, height: 32, reference_spp: 32, max_plain_factor: 4.0, ..Default::default() };
+    let reference = ReferenceOptions::default().spp(32).max_spp(32);
+    let options = EtrtOptions { spp: 2, width: 32, height: 32, reference, max_plain_factor: 4.0, ..Default::default() };
     let model = Denoiser::builtin().unwrap();
     let (report, images) = run_etrt(&scene, &model, &options, None, &dir.path().join("cache"), &Quiet).unwrap();
     let names: Vec<&str> = report.images.all().iter().map(|i| i.name.as_str()).collect();

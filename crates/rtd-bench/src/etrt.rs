@@ -10,11 +10,12 @@ use std::time::Duration;
 use rtd_denoise::filter::GuidedFilter;
 use rtd_denoise::{DenoiseInput, Denoiser};
 use rtd_image::metrics::{metrics, Metrics};
-use rtd_image::{HdrImage, Layer, Layers, Quiet};
+use rtd_image::{HdrImage, Quiet};
 use rtd_pipeline::{denoise_input, Budget, Pipeline, SceneView};
 use rtd_render::{PathTracer, RenderSettings};
 use serde::{Deserialize, Serialize};
 
+use crate::reference::{reference, ReferenceOptions};
 use crate::{BenchError, METRIC_BORDER};
 use rtd_image::Progress;
 
@@ -30,8 +31,8 @@ pub struct EtrtOptions {
     pub height: u32,
     /// Seed of the measured render (the reference uses independent seeds).
     pub seed: u64,
-    /// Reference spp when rendering one.
-    pub reference_spp: u32,
+    /// How a rendered reference is made (when none is given).
+    pub reference: ReferenceOptions,
     /// Longest plain rendering for time-to-quality, as a multiple of the pipeline's time;
     /// beyond it the time is extrapolated.
     pub max_plain_factor: f64,
@@ -39,7 +40,14 @@ pub struct EtrtOptions {
 
 impl Default for EtrtOptions {
     fn default() -> Self {
-        EtrtOptions { spp: 8, width: 256, height: 256, seed: 0, reference_spp: 1024, max_plain_factor: 16.0 }
+        EtrtOptions {
+            spp: 8,
+            width: 256,
+            height: 256,
+            seed: 0,
+            reference: ReferenceOptions::default(),
+            max_plain_factor: 16.0,
+        }
     }
 }
 
@@ -65,6 +73,8 @@ pub struct EtrtReport {
     pub options: EtrtOptions,
     /// Reference spp and where it came from.
     pub reference: String,
+    /// The reference's samples per pixel (None if it was loaded from a file).
+    pub reference_spp: Option<u32>,
     /// Estimated relMSE left in the reference (from two independent halves; None if loaded).
     pub reference_relmse: Option<f64>,
     /// Render seconds of the pipeline.
@@ -133,77 +143,6 @@ pub struct EtrtImages {
 }
 
 /// `spp` samples per pixel of `view` with `seed`, outside the pipeline (references).
-fn render_spp(view: &SceneView, o: &EtrtOptions, seed: u64, spp: u32) -> Result<HdrImage, BenchError> {
-    let tracer = PathTracer::new(&view.scene, view.camera.clone(), RenderSettings::new(o.width, o.height).seed(seed))?;
-    let mut film = tracer.film();
-    tracer.render(&mut film, spp)?;
-    Ok(film.beauty())
-}
-
-/// A reference image, where it came from, and its estimated remaining relMSE.
-pub struct Reference {
-    /// The image.
-    pub image: HdrImage,
-    /// Its spp and file, for the report.
-    pub description: String,
-    /// Estimated relMSE left in it (from two independent halves; None if loaded).
-    pub relmse: Option<f64>,
-}
-
-/// Loads `given` or renders a reference of `view` (two independent halves, cached in
-/// `cache_dir` under a key of the scene's bytes, size, spp and rtd version).
-pub fn reference(
-    view: &SceneView,
-    o: &EtrtOptions,
-    given: Option<&Path>,
-    cache_dir: &Path,
-    progress: &dyn Progress,
-) -> Result<Reference, BenchError> {
-    if let Some(p) = given {
-        let image =
-            rtd_image::read_exr(p)?.image(Layer::Beauty).ok_or_else(|| BenchError::msg(p, "no R,G,B channels"))?;
-        if (image.width, image.height) != (o.width, o.height) {
-            return Err(BenchError::msg(
-                p,
-                format!(
-                    "reference is {}x{}, the benchmark renders {}x{}",
-                    image.width, image.height, o.width, o.height
-                ),
-            ));
-        }
-        return Ok(Reference { image, description: format!("loaded from {}", p.display()), relmse: None });
-    }
-    let bytes = std::fs::read(&view.path).map_err(|e| BenchError::io(&view.path, e))?;
-    // FNV-1a over everything the reference depends on.
-    let mut key = 0xcbf2_9ce4_8422_2325u64;
-    for b in bytes
-        .iter()
-        .chain(format!("{}x{}x{}x{}", o.width, o.height, o.reference_spp, env!("CARGO_PKG_VERSION")).as_bytes())
-    {
-        key = (key ^ *b as u64).wrapping_mul(0x100_0000_01b3);
-    }
-    let path = cache_dir.join(format!("reference-{key:016x}.exr"));
-    if let Ok(l) = rtd_image::read_exr(&path) {
-        // A cached file of another size (damaged, or written by hand) is rendered again.
-        let sized = |i: &HdrImage| (i.width, i.height) == (o.width, o.height);
-        if let (Some(image), Some(noise)) = (l.image(Layer::Beauty).filter(sized), l.plane(Layer::NoiseEstimate)) {
-            let description = format!("{} spp, cached {}", o.reference_spp, path.display());
-            return Ok(Reference { image, description, relmse: Some(noise[0] as f64) });
-        }
-    }
-    progress.note(&format!("rendering a {} spp reference (cached afterwards)", o.reference_spp));
-    let a = render_spp(view, o, o.seed ^ 0xA5A5_0001, o.reference_spp / 2)?;
-    let b = render_spp(view, o, o.seed ^ 0x5A5A_0002, o.reference_spp / 2)?;
-    let (image, noise_relmse) = rtd_image::metrics::mean_of_halves_with_noise(&a, &b);
-    std::fs::create_dir_all(cache_dir).map_err(|e| BenchError::io(cache_dir, e))?;
-    let mut layers = Layers::new(o.width, o.height);
-    layers.put_image(Layer::Beauty, &image);
-    layers.put_plane(Layer::NoiseEstimate, vec![noise_relmse as f32; (o.width * o.height) as usize]);
-    rtd_image::write_exr(&path, &layers)?;
-    let description = format!("{} spp, rendered and cached {}", o.reference_spp, path.display());
-    Ok(Reference { image, description, relmse: Some(noise_relmse) })
-}
-
 /// Runs the whole comparison on `view` against `given_reference`, or a rendered one cached in
 /// `cache_dir`.
 pub fn run_etrt(
@@ -216,7 +155,8 @@ pub fn run_etrt(
 ) -> Result<(EtrtReport, EtrtImages), BenchError> {
     let o = options;
     progress.start(6, "etrt");
-    let reference = reference(view, o, given_reference, cache_dir, progress)?;
+    let size = (o.width, o.height, o.seed);
+    let reference = reference(view, size, &o.reference, given_reference, cache_dir, progress)?;
     progress.inc(1);
     // The rtd pipeline, timed stage by stage.
     let pipeline = Pipeline::new(view, RenderSettings::new(o.width, o.height).seed(o.seed)).denoise(denoiser);
@@ -269,6 +209,7 @@ pub fn run_etrt(
         scene: view.path.display().to_string(),
         options: o.clone(),
         reference: reference.description,
+        reference_spp: reference.spp,
         reference_relmse: reference.relmse,
         render_s,
         guide_s,

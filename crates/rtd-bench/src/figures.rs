@@ -60,7 +60,7 @@ pub fn panel_labels(report: &EtrtReport) -> [[String; 2]; 4] {
 fn reference_label(report: &EtrtReport) -> String {
     match report.reference.strip_prefix("loaded from ") {
         Some(file) => Path::new(file).file_name().map_or(file.to_string(), |n| n.to_string_lossy().into_owned()),
-        None => format!("{} spp", report.options.reference_spp),
+        None => report.reference_spp.map_or_else(|| "reference".to_string(), |spp| format!("{spp} spp")),
     }
 }
 

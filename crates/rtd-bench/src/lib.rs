@@ -11,6 +11,7 @@ pub mod etrt;
 pub mod figures;
 pub mod light_selection;
 pub mod procedural;
+pub mod reference;
 pub mod report_files;
 pub mod scaling;
 pub mod speed;

@@ -47,6 +47,8 @@ pub enum Layer {
     Ao,
     /// A reference's estimated remaining relMSE, stored in every pixel (`noise.Y`).
     NoiseEstimate,
+    /// A reference's samples per pixel, stored in every pixel (`spp.Y`).
+    SampleCount,
     /// The variance of each pixel's mean in the beauty beside it, per channel
     /// (`variance.R/G/B`): the noise the renderer measured, which the denoiser reads.
     Variance,
@@ -69,6 +71,7 @@ impl Layer {
             Layer::Depth => "depth".into(),
             Layer::Ao => "ao".into(),
             Layer::NoiseEstimate => "noise".into(),
+            Layer::SampleCount => "spp".into(),
             Layer::Variance => "variance".into(),
             Layer::VarianceAt(spp) => format!("variance{spp}"),
         }
@@ -79,7 +82,7 @@ impl Layer {
         match self {
             Layer::Normal => Channels::Xyz,
             Layer::Depth => Channels::Scalar("Z"),
-            Layer::Ao | Layer::NoiseEstimate => Channels::Scalar("Y"),
+            Layer::Ao | Layer::NoiseEstimate | Layer::SampleCount => Channels::Scalar("Y"),
             Layer::Beauty
             | Layer::Noisy
             | Layer::NoisyAt(_)
@@ -117,6 +120,7 @@ impl Layer {
             | Layer::Guide
             | Layer::Ao
             | Layer::NoiseEstimate
+            | Layer::SampleCount
             | Layer::Variance
             | Layer::VarianceAt(_) => &[],
         }
@@ -145,6 +149,7 @@ mod tests {
         assert_eq!(Layer::Ao.channel_names(), ["ao.Y"]);
         assert_eq!(Layer::NoisyAt(8).channel_names(), ["noisy8.R", "noisy8.G", "noisy8.B"]);
         assert_eq!(Layer::NoiseEstimate.channel_names(), ["noise.Y"]);
+        assert_eq!(Layer::SampleCount.channel_names(), ["spp.Y"]);
         assert_eq!(Layer::Variance.channel_names(), ["variance.R", "variance.G", "variance.B"]);
         assert_eq!(Layer::VarianceAt(8).channel_names(), ["variance8.R", "variance8.G", "variance8.B"]);
     }

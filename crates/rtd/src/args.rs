@@ -240,9 +240,17 @@ pub struct PipelineArgs {
     /// Samples per pixel of the denoised pipeline.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub spp: u32,
-    /// Samples per pixel of a rendered reference.
+    /// Samples per pixel of a rendered reference's first round; it doubles while its estimated
+    /// remaining relMSE is above --reference-relmse, up to --reference-max-spp.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
     pub reference_spp: u32,
+    /// The estimated remaining relMSE (from two independent halves) a rendered reference is
+    /// doubled down to.
+    #[arg(long, default_value_t = 1e-3, value_parser = parse_relmse)]
+    pub reference_relmse: f64,
+    /// The most samples per pixel a rendered reference may take.
+    #[arg(long, default_value_t = 16384, value_parser = clap::value_parser!(u32).range(2..=1_048_576))]
+    pub reference_max_spp: u32,
     /// Image width.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=rtd_image::MAX_DIMENSION as i64))]
     pub width: u32,
@@ -263,7 +271,7 @@ pub struct EtrtArgs {
     #[command(flatten)]
     pub pipeline: PipelineArgs,
     /// A reference EXR to score against (default: render one, cached).
-    #[arg(long, conflicts_with = "reference_spp")]
+    #[arg(long, conflicts_with_all = ["reference_spp", "reference_relmse", "reference_max_spp"])]
     pub reference: Option<PathBuf>,
     /// Seed of the measured render.
     #[arg(long, default_value_t = 0)]
@@ -453,6 +461,13 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(t) if t > 0.0 && t.is_finite() && t <= 7.0 * 86400.0 => Ok(t),
         _ => Err(format!("'{s}' is not a number of seconds in (0, 604800]")),
+    }
+}
+
+fn parse_relmse(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
+        _ => Err(format!("'{s}' is not a relMSE: it must be a positive finite number")),
     }
 }
 

@@ -146,7 +146,10 @@ fn etrt_options(p: &PipelineArgs, seed: u64) -> rtd_bench::EtrtOptions {
         width: p.width,
         height: p.height,
         seed,
-        reference_spp: p.reference_spp,
+        reference: rtd_bench::reference::ReferenceOptions::default()
+            .spp(p.reference_spp)
+            .relmse(p.reference_relmse)
+            .max_spp(p.reference_max_spp),
         ..Default::default()
     }
 }
