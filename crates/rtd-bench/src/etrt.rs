@@ -142,7 +142,6 @@ pub struct EtrtImages {
     pub reference: HdrImage,
 }
 
-/// `spp` samples per pixel of `view` with `seed`, outside the pipeline (references).
 /// Runs the whole comparison on `view` against `given_reference`, or a rendered one cached in
 /// `cache_dir`.
 pub fn run_etrt(

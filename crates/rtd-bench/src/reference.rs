@@ -62,8 +62,8 @@ pub struct Reference {
 }
 
 /// Loads `given` (which must be `width` × `height`) or renders a reference of `view` with
-/// [`render_reference`], cached in `cache_dir` under a key of the scene's bytes, the size,
-/// `options` and the rtd version. `seed` is the measured render's; the halves' seeds differ
+/// [`render_reference`], cached in `cache_dir` under a key of the scene's bytes, the size, the
+/// seed, `options` and the rtd version. `seed` is the measured render's; the halves' seeds differ
 /// from it.
 pub fn reference(
     view: &SceneView,
@@ -89,7 +89,8 @@ pub fn reference(
     // FNV-1a over everything the reference depends on.
     let mut key = 0xcbf2_9ce4_8422_2325u64;
     let o = options;
-    let settings = format!("{width}x{height}x{}x{:e}x{}x{}", o.spp, o.relmse, o.max_spp, env!("CARGO_PKG_VERSION"));
+    let version = env!("CARGO_PKG_VERSION");
+    let settings = format!("{width}x{height}x{seed}x{}x{:e}x{}x{version}", o.spp, o.relmse, o.max_spp);
     for b in bytes.iter().chain(settings.as_bytes()) {
         key = (key ^ *b as u64).wrapping_mul(0x100_0000_01b3);
     }
