@@ -58,9 +58,12 @@ pub fn panel_labels(report: &EtrtReport) -> [[String; 2]; 4] {
 
 /// The reference's samples, or the file it was loaded from (the name only).
 fn reference_label(report: &EtrtReport) -> String {
-    match report.reference.strip_prefix("loaded from ") {
-        Some(file) => Path::new(file).file_name().map_or(file.to_string(), |n| n.to_string_lossy().into_owned()),
-        None => report.reference_spp.map_or_else(|| "reference".to_string(), |spp| format!("{spp} spp")),
+    match report.reference_spp {
+        Some(spp) => format!("{spp} spp"),
+        None => {
+            let file = report.reference.strip_prefix("loaded from ").unwrap_or(&report.reference);
+            Path::new(file).file_name().map_or(file.to_string(), |n| n.to_string_lossy().into_owned())
+        }
     }
 }
 

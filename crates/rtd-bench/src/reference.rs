@@ -103,9 +103,13 @@ pub fn reference(
         if let (Some(image), Some(noise), Some(spp)) =
             (l.image(Layer::Beauty).filter(sized), l.plane(Layer::NoiseEstimate), spp)
         {
-            let spp = spp as u32;
-            let description = format!("{spp} spp{}, cached {}", short_of(options, noise[0] as f64), path.display());
-            return Ok(Reference { image, spp: Some(spp), description, relmse: Some(noise[0] as f64) });
+            return Ok(Reference::rendered(
+                image,
+                spp as u32,
+                noise[0] as f64,
+                options,
+                format!("cached {}", path.display()),
+            ));
         }
     }
     let (image, spp, noise) = render_reference(view, (width, height, seed), options, progress)?;
@@ -116,16 +120,20 @@ pub fn reference(
     layers.put_plane(Layer::NoiseEstimate, vec![noise as f32; pixels]);
     layers.put_plane(Layer::SampleCount, vec![spp as f32; pixels]);
     rtd_image::write_exr(&path, &layers)?;
-    let description = format!("{spp} spp{}, rendered and cached {}", short_of(options, noise), path.display());
-    Ok(Reference { image, spp: Some(spp), description, relmse: Some(noise) })
+    Ok(Reference::rendered(image, spp, noise, options, format!("rendered and cached {}", path.display())))
 }
 
-/// A note for a reference whose estimated relMSE stayed above the target (the cap stopped it).
-fn short_of(options: &ReferenceOptions, noise: f64) -> String {
-    if noise > options.relmse {
-        format!(" (stopped by the {} spp cap, short of the {:.0e} relMSE target)", options.max_spp, options.relmse)
-    } else {
-        String::new()
+impl Reference {
+    /// A rendered reference of `spp` samples with estimated relMSE `noise`, described with its
+    /// spp, whether the cap stopped it short of `options.relmse`, and `origin`.
+    fn rendered(image: HdrImage, spp: u32, noise: f64, options: &ReferenceOptions, origin: String) -> Self {
+        let short = if noise > options.relmse {
+            format!(" (stopped by the {} spp cap, short of the {:.0e} relMSE target)", options.max_spp, options.relmse)
+        } else {
+            String::new()
+        };
+        let description = format!("{spp} spp{short}, {origin}");
+        Reference { image, spp: Some(spp), description, relmse: Some(noise) }
     }
 }
 
