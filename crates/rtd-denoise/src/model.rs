@@ -15,7 +15,7 @@ use crate::encode::Encoding;
 /// every parameter, and the ids are written into every record: two identical training runs
 /// would otherwise save model and checkpoint files whose tensors are equal but whose bytes are
 /// not, and a reproduced model could not be checked by its hash.
-struct NumberedParams(u64);
+pub(crate) struct NumberedParams(pub(crate) u64);
 
 impl ModuleMapper for NumberedParams {
     fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
@@ -267,13 +267,17 @@ pub struct InceptionBlock {
 
 impl InceptionBlock {
     /// Branch width for an output of `cout` channels.
-    fn branch(cout: usize) -> usize {
+    pub(crate) fn branch(cout: usize) -> usize {
         (cout / 4).max(4)
     }
 
+    /// Width of each pooling branch's projection for an output of `cout` channels.
+    pub(crate) fn half_branch(cout: usize) -> usize {
+        (Self::branch(cout) / 2).max(2)
+    }
+
     fn new(cin: usize, cout: usize, dilation: usize, prong: usize, device: &Device) -> Self {
-        let b = Self::branch(cout);
-        let h = (b / 2).max(2);
+        let (b, h) = (Self::branch(cout), Self::half_branch(cout));
         InceptionBlock {
             one: conv(cin, b, 1, 1, device),
             three: conv(cin, b, 3, 1, device),
@@ -292,8 +296,7 @@ impl InceptionBlock {
     }
 
     fn macs(cin: usize, cout: usize, prong: usize) -> f64 {
-        let b = Self::branch(cout);
-        let h = (b / 2).max(2);
+        let (b, h) = (Self::branch(cout), Self::half_branch(cout));
         (cin * b + 2 * 9 * cin * b + prong * cin * b + prong * b * b + 2 * cin * h + (4 * b + 2 * h) * cout) as f64
     }
 
