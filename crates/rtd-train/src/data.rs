@@ -114,7 +114,7 @@ pub struct Batch {
     /// Encoded reference colour, [n, 3, s, s].
     pub targets: Vec<f32>,
     /// Decode scales, [n, 3, s, s]: linear radiance = (e^y − 1) × scale for an encoded colour
-    /// y of the same crop (see [`crate::train::display_loss`]).
+    /// y of the same crop (see [`crate::loss::display_loss`]).
     pub scales: Vec<f32>,
 }
 

@@ -8,6 +8,7 @@
 
 pub mod data;
 pub mod dataset;
+pub mod loss;
 pub mod options;
 pub mod plot;
 pub mod run_state;
