@@ -16,7 +16,6 @@ pub mod model;
 pub mod plane_encoder;
 pub mod planes;
 pub mod pooling;
-pub mod widen;
 pub mod winograd;
 
 pub use encode::DenoiseInput;

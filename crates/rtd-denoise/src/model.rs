@@ -15,7 +15,7 @@ use crate::encode::Encoding;
 /// every parameter, and the ids are written into every record: two identical training runs
 /// would otherwise save model and checkpoint files whose tensors are equal but whose bytes are
 /// not, and a reproduced model could not be checked by its hash.
-pub(crate) struct NumberedParams(pub(crate) u64);
+struct NumberedParams(u64);
 
 impl ModuleMapper for NumberedParams {
     fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
@@ -267,12 +267,12 @@ pub struct InceptionBlock {
 
 impl InceptionBlock {
     /// Branch width for an output of `cout` channels.
-    pub(crate) fn branch(cout: usize) -> usize {
+    fn branch(cout: usize) -> usize {
         (cout / 4).max(4)
     }
 
     /// Width of each pooling branch's projection for an output of `cout` channels.
-    pub(crate) fn half_branch(cout: usize) -> usize {
+    fn half_branch(cout: usize) -> usize {
         (Self::branch(cout) / 2).max(2)
     }
 

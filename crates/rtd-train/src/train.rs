@@ -63,7 +63,7 @@ fn inference_copy(net: &DenoiserNet, config: &DenoiserConfig) -> Result<Denoiser
 }
 
 /// Random weights, or those of `options.init` after checking that its config describes the
-/// network being trained, or a narrower one of the same depth that is widened to it.
+/// network being trained.
 fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, TrainError> {
     let Some(path) = &options.init else {
         return Ok(options.config.init_seeded(device, options.seed));
@@ -79,21 +79,13 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     if config.input_channels > options.config.input_channels {
         return Err(TrainError::msg(&cfg_path, "reads more input planes than the network being trained"));
     }
-    // A model with fewer channels at some level seeds a wider one: it is embedded so that the
-    // wider network starts from the same function (`DenoiserNet::widen_to`).
     let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
-    let planes = config.clone().with_input_channels(options.config.input_channels);
-    let wider = DenoiserConfig { channels: options.config.channels.clone(), ..planes.clone() };
-    if wider != options.config {
+    if config.clone().with_input_channels(options.config.input_channels) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = load_fenced(path, || ModuleRecord::load(path))?;
     let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    let net = if narrower { net.widen_input(options.config.input_channels) } else { net };
-    if planes == options.config {
-        return Ok(net);
-    }
-    net.widen_to(&planes, &options.config, options.seed).map_err(|e| TrainError::msg(&cfg_path, e))
+    Ok(if narrower { net.widen_input(options.config.input_channels) } else { net })
 }
 
 /// Trains (or, with `resume`, continues training) on the dataset in `data`, writing

@@ -126,10 +126,9 @@ pub struct TrainModelArgs {
     /// is the one its config describes.
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// Channels at each resolution level, full resolution first (comma-separated; default: the
-    /// shipped 24,48,64, or --init's). With --init, at least its model's at each level: the
-    /// model is widened so that the new network starts computing what it did.
-    #[arg(long, value_delimiter = ',',
+    /// From random weights: channels at each resolution level, full resolution first
+    /// (comma-separated; default: the shipped 24,48,64). Not with --init, whose model sets them.
+    #[arg(long, value_delimiter = ',', conflicts_with = "init",
           value_parser = clap::value_parser!(u32).range(1..=rtd_denoise::model::MAX_LEVEL_CHANNELS as i64))]
     pub channels: Vec<u32>,
     /// From random weights: inception blocks at the coarsest level (default: the shipped 2).

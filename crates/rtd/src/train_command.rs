@@ -91,27 +91,27 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
 }
 
 /// The library's options for `args`: the network is `--init`'s (its config read from the model
-/// file) or the shipped U-Net's shape with `--bottleneck-blocks` applied, then `--channels`,
+/// file) or the shipped U-Net's shape with `--channels` and `--bottleneck-blocks` applied, with
 /// `--demodulate` and `--exposure-key` applied.
 fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
     let (schedule, model, loss) = (&args.schedule, &args.model, &args.loss);
     // A model made before the variance planes is widened to read them (its stem starts with
     // zero weights there), so every model trained now reads every plane this rtd provides.
-    let mut config = match &model.init {
+    let config = match &model.init {
         Some(path) => {
             rtd_denoise::Denoiser::load(path)?.config().clone().with_input_channels(rtd_denoise::INPUT_CHANNELS)
         }
         None => {
             let mut config = DenoiserConfig::unet();
+            if !model.channels.is_empty() {
+                config.channels = model.channels.iter().map(|&c| c as usize).collect();
+            }
             if let Some(blocks) = model.bottleneck_blocks {
                 config.bottleneck_blocks = blocks as usize;
             }
             config
         }
     };
-    if !model.channels.is_empty() {
-        config.channels = model.channels.iter().map(|&c| c as usize).collect();
-    }
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
     let config = match model.exposure_key {
         Some(k) => config.with_exposure_key(Some(k)),
