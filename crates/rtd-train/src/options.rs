@@ -39,14 +39,11 @@ pub struct TrainOptions {
     /// of random ones: fine-tuning. The optimiser and schedule start afresh.
     #[serde(default)]
     pub init: Option<PathBuf>,
-    /// Weight of [`display_loss`](crate::loss::display_loss), the squared error on the display transform the PSNR is
-    /// measured on, added to the L1 [`training_loss`](crate::loss::training_loss) (0: off).
+    /// Weight of [`display_loss`](crate::loss::display_loss), the squared error on the display
+    /// transform the PSNR is measured on, added to the L1
+    /// [`training_loss`](crate::loss::training_loss) (0: off).
     #[serde(default)]
     pub display_loss: f32,
-    /// Weight of [`ms_ssim_loss`](crate::loss::ms_ssim_loss), 1 − MS-SSIM on the same display transform, added as well
-    /// (0: off).
-    #[serde(default)]
-    pub ms_ssim_loss: f32,
     /// Train only on the noisy renders at these sample counts (`None`: every stored count).
     #[serde(default)]
     pub spp_levels: Option<Vec<u32>>,
@@ -89,7 +86,6 @@ impl Default for TrainOptions {
             validation_spp: 8,
             init: None,
             display_loss: 0.0,
-            ms_ssim_loss: 0.0,
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
             variance_drop: DROP_PROBABILITY,
@@ -130,14 +126,10 @@ impl TrainOptions {
         self.init = model;
         self
     }
-    /// Sets the weight of [`display_loss`](crate::loss::display_loss) in the loss (0: off; negative weights become 0).
+    /// Sets the weight of [`display_loss`](crate::loss::display_loss) in the loss (0: off;
+    /// negative weights become 0).
     pub fn display_loss(mut self, w: f32) -> Self {
         self.display_loss = w.max(0.0);
-        self
-    }
-    /// Sets the weight of [`ms_ssim_loss`](crate::loss::ms_ssim_loss) in the loss (0: off; negative weights become 0).
-    pub fn ms_ssim_loss(mut self, w: f32) -> Self {
-        self.ms_ssim_loss = w.max(0.0);
         self
     }
     /// Trains only on the noisy renders at these sample counts (`None`: all of them).
@@ -222,9 +214,6 @@ impl TrainOptions {
         }
         if !(self.display_loss.is_finite() && self.display_loss >= 0.0) {
             return Some(format!("the display loss weight {} is not a finite number of at least 0", self.display_loss));
-        }
-        if !(self.ms_ssim_loss.is_finite() && self.ms_ssim_loss >= 0.0) {
-            return Some(format!("the MS-SSIM loss weight {} is not a finite number of at least 0", self.ms_ssim_loss));
         }
         if !(0.0..=1.0).contains(&self.guide_drop) {
             return Some(format!("the guide drop probability {} is not in [0, 1]", self.guide_drop));
@@ -380,8 +369,6 @@ mod tests {
         for w in [-1.0, f32::NAN, f32::INFINITY] {
             let o = TrainOptions { display_loss: w, ..ok.clone() };
             assert!(refusal(&o, &m).contains("display loss weight"), "{w}");
-            let o = TrainOptions { ms_ssim_loss: w, ..ok.clone() };
-            assert!(refusal(&o, &m).contains("MS-SSIM loss weight"), "{w}");
         }
         for p in [-0.1, 1.5, f32::NAN] {
             let o = TrainOptions { guide_drop: p, ..ok.clone() };

@@ -16,13 +16,10 @@ pub fn training_charts(state: &TrainState) -> Vec<Chart> {
         .enumerate()
         .map(|(i, c)| ((i * 20 + c.len()) as f64, c.iter().map(|v| *v as f64).sum::<f64>() / c.len() as f64))
         .collect();
-    let mut y_label = String::from("L1 (log colour)");
-    if state.options.display_loss > 0.0 {
-        y_label += &format!(" + {} x display MSE", state.options.display_loss);
-    }
-    if state.options.ms_ssim_loss > 0.0 {
-        y_label += &format!(" + {} x (1 - MS-SSIM)", state.options.ms_ssim_loss);
-    }
+    let y_label = match state.options.display_loss {
+        w if w > 0.0 => format!("L1 (log colour) + {w} x display MSE"),
+        _ => "L1 (log colour)".into(),
+    };
     let mut charts =
         vec![Chart::new("training loss", "optimiser step", y_label)
             .with(Series::line("train (mean of 20 steps)", smoothed))];
@@ -82,8 +79,5 @@ mod tests {
         let mut weighted = state(false);
         weighted.options = weighted.options.display_loss(100.0);
         assert_eq!(training_charts(&weighted)[0].y_label, "L1 (log colour) + 100 x display MSE");
-        weighted.options = weighted.options.ms_ssim_loss(0.5);
-        let label = &training_charts(&weighted)[0].y_label;
-        assert_eq!(label, "L1 (log colour) + 100 x display MSE + 0.5 x (1 - MS-SSIM)");
     }
 }

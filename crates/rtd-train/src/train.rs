@@ -1,6 +1,6 @@
 //! `rtd train`: Adam on random crops with a warm-up + cosine learning-rate schedule, the losses
-//! of [`crate::loss`], validation (PSNR, SSIM, relMSE against the noisy input) on held-out scenes every
-//! epoch, and resumable checkpoints.
+//! of [`crate::loss`], validation (PSNR, SSIM, relMSE against the noisy input) on held-out
+//! scenes every epoch, and resumable checkpoints.
 
 use std::path::Path;
 use std::time::Instant;
@@ -14,7 +14,7 @@ use rtd_image::metrics;
 
 use crate::data::{load_views, Batch, CropSampler, View};
 use crate::dataset::Manifest;
-use crate::loss::{display_loss, ms_ssim_loss, training_loss};
+use crate::loss::{display_loss, training_loss};
 use crate::run_state::RunFiles;
 pub use crate::run_state::{EpochRecord, TrainState, ValidationScores};
 use crate::{Progress, TrainError, TrainOptions};
@@ -250,8 +250,8 @@ fn run_steps(
 }
 
 /// The loss of `net` on `batch` (of `options.batch` crops of side `options.crop`) and its
-/// gradients: [`training_loss`], plus `options.display_loss` × [`display_loss`] and
-/// `options.ms_ssim_loss` × [`ms_ssim_loss`] where those weights are not 0.
+/// gradients: [`training_loss`], plus `options.display_loss` × [`display_loss`] when that
+/// weight is not 0.
 fn loss_and_gradients(
     net: &DenoiserNet,
     batch: Batch,
@@ -264,12 +264,9 @@ fn loss_and_gradients(
     let y = Tensor::<4>::from_data(TensorData::new(batch.targets, [b, 3, s, s]), device);
     let out = net.forward(x);
     let mut loss = training_loss(out.clone(), y.clone());
-    let scale = Tensor::<4>::from_data(TensorData::new(batch.scales, [b, 3, s, s]), device);
     if options.display_loss > 0.0 {
-        loss = loss + display_loss(out.clone(), y.clone(), scale.clone()).mul_scalar(options.display_loss);
-    }
-    if options.ms_ssim_loss > 0.0 {
-        loss = loss + ms_ssim_loss(out, y, scale).mul_scalar(options.ms_ssim_loss);
+        let scale = Tensor::<4>::from_data(TensorData::new(batch.scales, [b, 3, s, s]), device);
+        loss = loss + display_loss(out, y, scale).mul_scalar(options.display_loss);
     }
     let value = loss.clone().into_data().try_into_vec::<f32>().map(|v| v[0]).unwrap_or(f32::NAN);
     (value, GradientsParams::from_grads(loss.backward(), net))

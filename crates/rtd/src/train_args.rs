@@ -154,10 +154,6 @@ pub struct TrainLossArgs {
     /// measured on (linear colour clamped to [0, 1], sRGB-encoded; 0: off).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
     pub display_loss: f32,
-    /// Weight of an extra 1 − MS-SSIM term on the same display transform (three scales of
-    /// 11-tap Gaussian windows, as OIDN trains with beside L1; 0: off).
-    #[arg(long, default_value_t = 0.0, value_parser = non_negative_weight)]
-    pub ms_ssim_loss: f32,
     /// Train only on the noisy renders at these sample counts (comma-separated, e.g. 4,8,16;
     /// default: every count the dataset has).
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]

@@ -122,7 +122,6 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         .learning_rate(schedule.lr)
         .init(model.init.clone())
         .display_loss(loss.display_loss)
-        .ms_ssim_loss(loss.ms_ssim_loss)
         .spp_levels((!loss.spp_levels.is_empty()).then(|| loss.spp_levels.clone()))
         .guide_drop(loss.guide_drop)
         .variance_drop(loss.variance_drop)
