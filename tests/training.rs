@@ -375,6 +375,40 @@ fn a_separate_validation_set_scores_the_epochs() {
     assert!(!out.exists());
 }
 
+/// `more_data` pools other datasets' training views with the training dataset's: the pooled
+/// run trains on another set of views than the single one (its model differs) and is as
+/// deterministic; a pooled dataset the options cannot serve is refused by name before anything
+/// is written; and the datasets are part of the run's options, so a resume must name them again.
+#[test]
+fn more_datasets_pool_their_training_views() {
+    let dir = tempfile::tempdir().unwrap();
+    let make = |name: &str, seed: u64, size: u32| {
+        let path = dir.path().join(name);
+        let options = DatasetOptions::default().seed(seed).scenes(3).views_per_scene(1).size(size).reference_spp(16);
+        generate_dataset(&path, &options.validation_every(3), &Quiet).unwrap();
+        path
+    };
+    let (a, b, small) = (make("a", 1, 24), make("b", 2, 24), make("small", 3, 16));
+    let options = TrainOptions::default().config(tiny_config()).batch(2, 24).steps(4).epoch_steps(2);
+    let run = |name: &str, more: Vec<std::path::PathBuf>| {
+        train(&a, &dir.path().join(name), &options.clone().more_data(more), false, &Quiet)
+    };
+    let alone = run("alone", vec![]).unwrap();
+    let pooled = run("pooled", vec![b.clone()]).unwrap();
+    let again = run("again", vec![b.clone()]).unwrap();
+    assert_eq!(pooled.losses, again.losses, "same datasets, same seed, same losses");
+    assert_ne!(alone.losses, pooled.losses, "the pooled run trained on the same crops as the single one");
+    let output = |d: &str| saved_model_output(&dir.path().join(d));
+    assert!(output("alone") != output("pooled"));
+    // 16² views cannot serve 24² crops: refused, naming that dataset, and nothing is written.
+    let e = run("refused", vec![b.clone(), small.clone()]).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("{}: ", small.display())) && e.contains("crop side 24"), "{e}");
+    assert!(!dir.path().join("refused").exists());
+    // A resume without the pooled dataset names the option that differs.
+    let e = train(&a, &dir.path().join("pooled"), &options.clone().steps(4), true, &Quiet).unwrap_err().to_string();
+    assert!(e.contains("(they differ in: more_data)"), "{e}");
+}
+
 /// `refresh_guides` re-renders exactly the guide layers of every view and keeps the rest.
 #[test]
 fn refreshing_guides_rewrites_guide_layers_only() {

@@ -61,6 +61,10 @@ pub struct TrainOptions {
     /// training set made with `--split training`, which has none.
     #[serde(default)]
     pub validation_data: Option<PathBuf>,
+    /// More datasets whose training views are pooled with the training dataset's, each checked
+    /// as that one is: sets generated apart (other seeds, other sessions) trained on together.
+    #[serde(default)]
+    pub more_data: Vec<PathBuf>,
 }
 
 fn never_shown() -> f32 {
@@ -90,6 +94,7 @@ impl Default for TrainOptions {
             guide_drop: DROP_PROBABILITY,
             variance_drop: DROP_PROBABILITY,
             validation_data: None,
+            more_data: vec![],
         }
     }
 }
@@ -152,6 +157,11 @@ impl TrainOptions {
     /// training dataset's own).
     pub fn validation_data(mut self, dir: Option<PathBuf>) -> Self {
         self.validation_data = dir;
+        self
+    }
+    /// Pools the training views of the datasets in `dirs` with the training dataset's.
+    pub fn more_data(mut self, dirs: Vec<PathBuf>) -> Self {
+        self.more_data = dirs;
         self
     }
     /// Sets steps per epoch.

@@ -2,7 +2,7 @@
 //! of [`crate::loss`], validation (PSNR, SSIM, relMSE against the noisy input) on held-out
 //! scenes every epoch, and resumable checkpoints.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use burn::module::Module;
@@ -88,7 +88,8 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     Ok(if narrower { net.widen_input(options.config.input_channels) } else { net })
 }
 
-/// Trains (or, with `resume`, continues training) on the dataset in `data`, writing
+/// Trains (or, with `resume`, continues training) on the dataset in `data` (and those of
+/// [`TrainOptions::more_data`], each checked as `data` is), writing
 /// checkpoints, `state.json` and `curves.png` after every epoch (the curves again when it
 /// stops), and finally `model.bpk` + `model.json` into `out`. The options
 /// are checked first ([`TrainOptions::validate`], and
@@ -101,7 +102,9 @@ pub fn train(
     resume: bool,
     progress: &dyn Progress,
 ) -> Result<TrainState, TrainError> {
-    options.validate(data, &Manifest::load(data)?)?;
+    for dir in std::iter::once(data).chain(options.more_data.iter().map(PathBuf::as_path)) {
+        options.validate(dir, &Manifest::load(dir)?)?;
+    }
     if let Some(dir) = &options.validation_data {
         options.validate_validation_data(dir, &Manifest::load(dir)?)?;
     }
@@ -186,9 +189,13 @@ fn removed_option(state_json: &str) -> Option<String> {
     DenoiserConfig::from_json(&config).err().map(|e| format!("its network was {e}"))
 }
 
-/// The crop sampler over the dataset's training views, and its validation views.
+/// The crop sampler over the training views of `data` and [`TrainOptions::more_data`], and
+/// the validation views.
 fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<View>), TrainError> {
-    let train_views = load_views(data, false)?;
+    let mut train_views = load_views(data, false)?;
+    for dir in &options.more_data {
+        train_views.extend(load_views(dir, false)?);
+    }
     let val_views = load_views(options.validation_data.as_deref().unwrap_or(data), true)?;
     let sampler =
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?

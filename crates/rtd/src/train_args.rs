@@ -83,6 +83,11 @@ pub struct TrainArgs {
     /// scores its own tiny dataset.
     #[arg(long, conflicts_with = "quick")]
     pub validation_data: Option<PathBuf>,
+    /// Another dataset whose training views are pooled with --data's (repeatable): sets
+    /// generated apart, trained on together. Each is checked as --data is. Part of the run's
+    /// options: --resume needs them again. Not with --quick.
+    #[arg(long, value_name = "DIR", conflicts_with = "quick")]
+    pub more_data: Vec<PathBuf>,
     /// Continue the run in --output after an interruption.
     #[arg(long)]
     pub resume: bool,

@@ -126,6 +126,7 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         .guide_drop(loss.guide_drop)
         .variance_drop(loss.variance_drop)
         .validation_data(args.validation_data.clone())
+        .more_data(args.more_data.clone())
         .seed(schedule.seed)
         .steps(schedule.steps)
         .batch(schedule.batch as usize, schedule.crop as usize)
