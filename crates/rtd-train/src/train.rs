@@ -102,7 +102,7 @@ pub fn train(
     resume: bool,
     progress: &dyn Progress,
 ) -> Result<TrainState, TrainError> {
-    for dir in std::iter::once(data).chain(options.more_data.iter().map(PathBuf::as_path)) {
+    for dir in training_sets(data, options) {
         options.validate(dir, &Manifest::load(dir)?)?;
     }
     if let Some(dir) = &options.validation_data {
@@ -189,11 +189,15 @@ fn removed_option(state_json: &str) -> Option<String> {
     DenoiserConfig::from_json(&config).err().map(|e| format!("its network was {e}"))
 }
 
-/// The crop sampler over the training views of `data` and [`TrainOptions::more_data`], and
-/// the validation views.
+/// The datasets whose training views are trained on: `data`, then [`TrainOptions::more_data`].
+fn training_sets<'a>(data: &'a Path, options: &'a TrainOptions) -> impl Iterator<Item = &'a Path> {
+    std::iter::once(data).chain(options.more_data.iter().map(PathBuf::as_path))
+}
+
+/// The crop sampler over the training views of [`training_sets`], and the validation views.
 fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<View>), TrainError> {
-    let mut train_views = load_views(data, false)?;
-    for dir in &options.more_data {
+    let mut train_views = vec![];
+    for dir in training_sets(data, options) {
         train_views.extend(load_views(dir, false)?);
     }
     let val_views = load_views(options.validation_data.as_deref().unwrap_or(data), true)?;
