@@ -11,7 +11,7 @@
 //! exp(−σ_a·d). Volumes do not nest: entering a second absorbing mesh replaces the first.
 
 use glam::{Vec2, Vec3};
-use rtd_scene::{AlphaMode, Scene};
+use rtd_scene::{AlphaMode, Material, Scene};
 
 use crate::bsdf::{Bsdf, BsdfParams};
 use crate::bvh::{SceneBvh, NO_TRIANGLE};
@@ -65,18 +65,13 @@ impl Integrator<'_> {
     /// [`Integrator::trace`] with the first ray seeing nothing nearer than `t_near` (the
     /// camera's near clip).
     pub fn trace_clipped(&self, origin: Vec3, dir: Vec3, t_near: f32, sampler: &mut Sampler) -> PathResult {
-        let (scene, bvh, lights) = (self.scene, self.bvh, self.lights);
+        let (scene, bvh) = (self.scene, self.bvh);
         let mut radiance = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut aov = Aov::default();
         let mut rays = 0u32;
         let (mut o, mut d) = (origin, dir);
-        // State of the previous vertex, for MIS on emitters hit by BSDF sampling.
-        let mut specular = true;
-        let mut prev_pdf = 0.0f32;
-        let mut prev_p = origin;
-        // The normal light selection weighed the lights by at the previous vertex.
-        let mut prev_n = Vec3::ZERO;
+        let mut prev = PrevVertex { specular: true, pdf: 0.0, p: origin, n: Vec3::ZERO };
         // The triangle the ray leaves (none for the camera ray).
         let mut leaving = NO_TRIANGLE;
         // Absorption coefficient of the medium the path is travelling in (zero: none).
@@ -86,20 +81,7 @@ impl Integrator<'_> {
             rays += 1;
             let t_min = if depth == 0 { t_near } else { 0.0 };
             let Some(hit) = bvh.intersect_within(scene, o, d, t_min, f32::INFINITY, leaving) else {
-                // A camera ray that escapes sees the environment: a light, white in the albedo
-                // AOV as emitters are (see `Material::albedo`), unless the environment is black.
-                if depth == 0 && lights.has_environment() {
-                    aov.albedo = Vec3::ONE;
-                }
-                let le = scene.environment.radiance(d);
-                if le != Vec3::ZERO {
-                    let w = if specular {
-                        1.0
-                    } else {
-                        power_heuristic(prev_pdf, lights.environment_pdf(&scene.environment, d))
-                    };
-                    radiance += beta * le * w;
-                }
+                radiance += self.escaped(beta, d, depth, &prev, &mut aov);
                 break;
             };
             if medium != Vec3::ZERO {
@@ -111,24 +93,11 @@ impl Integrator<'_> {
             if depth == 0 {
                 aov = Aov { albedo: s.params.aov_albedo(), normal: s.ns, depth: (s.p - origin).length() };
             }
-            // Emission, front side only unless double-sided.
-            if s.params.emission != Vec3::ZERO && (material.double_sided || wo.dot(s.ng) > 0.0) {
-                let w = if specular {
-                    1.0
-                } else {
-                    // Area-to-solid-angle pdf of having sampled this point by light sampling.
-                    let area = scene.triangles[hit.triangle as usize].area();
-                    let dist2 = (s.p - prev_p).length_squared();
-                    let pmf = lights.triangle_pmf(prev_p, prev_n, hit.triangle);
-                    let pdf_light = pmf * dist2 / (wo.dot(s.ng).abs() * area);
-                    power_heuristic(prev_pdf, pdf_light)
-                };
-                radiance += beta * s.params.emission * w;
-            }
+            radiance += self.emitted(beta, &s, material, wo, &prev);
             // KHR_materials_unlit: the base colour as it is, seen directly or through delta
             // bounces; it scatters nothing, so it neither receives nor casts light.
             if material.unlit {
-                if specular {
+                if prev.specular {
                     radiance += beta * s.params.base_color;
                 }
                 break;
@@ -138,52 +107,10 @@ impl Integrator<'_> {
             }
             let frame = Frame::from_normal(s.ns);
             let wo_l = frame.to_local(wo);
-            let params = BsdfParams {
-                base_color: s.params.base_color,
-                metallic: s.params.metallic,
-                roughness: s.params.roughness,
-                transmission: s.params.transmission,
-                ior: s.params.ior,
-                specular: s.params.specular,
-                specular_color: s.params.specular_color,
-                opacity: if material.alpha_mode == AlphaMode::Blend { s.params.alpha } else { 1.0 },
-                layers: s.params.layers,
-            };
-            let bsdf = Bsdf::new(params, wo_l);
-
-            // Next-event estimation.
-            let u_select = sampler.get_1d();
-            let u_light = sampler.get_2d();
-            if bsdf.has_non_delta() {
-                if let Some(ls) = lights.sample(scene, s.p, s.ng, u_select, u_light) {
-                    let wi_l = frame.to_local(ls.wi);
-                    if ls.pdf > 0.0 && ls.li != Vec3::ZERO && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l) {
-                        let (f, bsdf_pdf) = bsdf.eval(wo_l, wi_l);
-                        let f = f * wi_l.z.abs();
-                        if f != Vec3::ZERO {
-                            rays += 1;
-                            let from = s.spawn_origin(ls.wi);
-                            let (blocked, absorbed) = match ls.point {
-                                // Stop the shadow ray just short of the light point.
-                                Some(q) => {
-                                    let (dir, dist) = (q - from).normalize_and_length();
-                                    let blocked =
-                                        bvh.occluded_leaving(scene, from, dir, dist * (1.0 - 1e-4), s.triangle);
-                                    (blocked, transmittance(medium, dist))
-                                }
-                                // An unblocked ray to infinity leaves any (open) medium at once.
-                                None => {
-                                    (bvh.occluded_leaving(scene, from, ls.wi, f32::INFINITY, s.triangle), Vec3::ONE)
-                                }
-                            };
-                            if !blocked {
-                                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
-                                radiance += beta * absorbed * f * ls.li * (w / ls.pdf);
-                            }
-                        }
-                    }
-                }
-            }
+            let bsdf = Bsdf::new(bsdf_params(&s, material), wo_l);
+            let (direct, shadow_rays) = self.next_event(beta, &s, &frame, &bsdf, (wo, wo_l), medium, sampler);
+            radiance += direct;
+            rays += shadow_rays;
 
             // Continue the path by sampling the BSDF.
             let u_lobe = sampler.get_1d();
@@ -201,14 +128,12 @@ impl Integrator<'_> {
                 medium = if wi.dot(s.ng) < 0.0 { material.absorption } else { Vec3::ZERO };
             }
             beta *= bs.weight;
-            specular = bs.delta;
-            prev_pdf = bs.pdf;
-            prev_p = s.p;
-            prev_n = s.ng;
+            prev = PrevVertex { specular: bs.delta, pdf: bs.pdf, p: s.p, n: s.ng };
             leaving = s.triangle;
             o = s.spawn_origin(wi);
             d = wi;
             depth += 1;
+            // Russian roulette after three bounces, survival min(max β, 0.95).
             if depth > 3 {
                 let q = beta.max_element().min(0.95);
                 if !(u_rr < q) {
@@ -221,6 +146,128 @@ impl Integrator<'_> {
             }
         }
         PathResult { radiance, aov, rays }
+    }
+
+    /// Radiance (times the path throughput `beta`) a ray that escapes along `d` brings back from the environment, MIS-weighted
+    /// against light sampling at the previous vertex. A camera ray that escapes sees the
+    /// environment: a light, white in the albedo AOV as emitters are (see `Material::albedo`),
+    /// unless the environment is black.
+    #[inline(always)]
+    fn escaped(&self, beta: Vec3, d: Vec3, depth: u32, prev: &PrevVertex, aov: &mut Aov) -> Vec3 {
+        if depth == 0 && self.lights.has_environment() {
+            aov.albedo = Vec3::ONE;
+        }
+        let le = self.scene.environment.radiance(d);
+        if le == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        let w = if prev.specular {
+            1.0
+        } else {
+            power_heuristic(prev.pdf, self.lights.environment_pdf(&self.scene.environment, d))
+        };
+        beta * le * w
+    }
+
+    /// Emitted radiance (times the path throughput `beta`) toward `wo` at a surface BSDF sampling hit (front side only unless
+    /// double-sided), MIS-weighted against light sampling at the previous vertex.
+    #[inline(always)]
+    fn emitted(&self, beta: Vec3, s: &Surface, material: &Material, wo: Vec3, prev: &PrevVertex) -> Vec3 {
+        if s.params.emission == Vec3::ZERO || !(material.double_sided || wo.dot(s.ng) > 0.0) {
+            return Vec3::ZERO;
+        }
+        let w = if prev.specular {
+            1.0
+        } else {
+            // Area-to-solid-angle pdf of having sampled this point by light sampling.
+            let area = self.scene.triangles[s.triangle as usize].area();
+            let dist2 = (s.p - prev.p).length_squared();
+            let pmf = self.lights.triangle_pmf(prev.p, prev.n, s.triangle);
+            let pdf_light = pmf * dist2 / (wo.dot(s.ng).abs() * area);
+            power_heuristic(prev.pdf, pdf_light)
+        };
+        beta * s.params.emission * w
+    }
+
+    /// Next-event estimation at `s`: one light chosen and sampled, its unoccluded contribution
+    /// weighted by the power heuristic against BSDF sampling (delta lights unweighted), and
+    /// attenuated by the medium the path is in; `wo` is given in world and local space. Returns the radiance (times the path
+    /// throughput `beta`) and the shadow rays traced. Draws its three numbers whether or not the BSDF
+    /// can use them, so the sample stream does not depend on the material.
+    #[inline(always)]
+    fn next_event(
+        &self,
+        beta: Vec3,
+        s: &Surface,
+        frame: &Frame,
+        bsdf: &Bsdf,
+        (wo, wo_l): (Vec3, Vec3),
+        medium: Vec3,
+        sampler: &mut Sampler,
+    ) -> (Vec3, u32) {
+        let (scene, bvh) = (self.scene, self.bvh);
+        let u_select = sampler.get_1d();
+        let u_light = sampler.get_2d();
+        if !bsdf.has_non_delta() {
+            return (Vec3::ZERO, 0);
+        }
+        let Some(ls) = self.lights.sample(scene, s.p, s.ng, u_select, u_light) else {
+            return (Vec3::ZERO, 0);
+        };
+        let wi_l = frame.to_local(ls.wi);
+        if !(ls.pdf > 0.0 && ls.li != Vec3::ZERO && same_side_agrees(wo, ls.wi, s.ng, wo_l, wi_l)) {
+            return (Vec3::ZERO, 0);
+        }
+        let (f, bsdf_pdf) = bsdf.eval(wo_l, wi_l);
+        let f = f * wi_l.z.abs();
+        if f == Vec3::ZERO {
+            return (Vec3::ZERO, 0);
+        }
+        let from = s.spawn_origin(ls.wi);
+        let (blocked, absorbed) = match ls.point {
+            // Stop the shadow ray just short of the light point.
+            Some(q) => {
+                let (dir, dist) = (q - from).normalize_and_length();
+                let blocked = bvh.occluded_leaving(scene, from, dir, dist * (1.0 - 1e-4), s.triangle);
+                (blocked, transmittance(medium, dist))
+            }
+            // An unblocked ray to infinity leaves any (open) medium at once.
+            None => (bvh.occluded_leaving(scene, from, ls.wi, f32::INFINITY, s.triangle), Vec3::ONE),
+        };
+        if blocked {
+            return (Vec3::ZERO, 1);
+        }
+        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
+        (beta * absorbed * f * ls.li * (w / ls.pdf), 1)
+    }
+}
+
+/// What a path keeps of its previous scattering vertex, for the MIS weight of emitters that
+/// BSDF sampling hits.
+struct PrevVertex {
+    /// The direction came from a delta lobe (or the camera): no MIS.
+    specular: bool,
+    /// Solid-angle pdf with which the BSDF sampled the direction.
+    pdf: f32,
+    /// The vertex's position.
+    p: Vec3,
+    /// The normal light selection weighed the lights by there.
+    n: Vec3,
+}
+
+/// The BSDF parameters of a surface point of `material` (alpha blending as opacity).
+#[inline]
+fn bsdf_params(s: &Surface, material: &Material) -> BsdfParams {
+    BsdfParams {
+        base_color: s.params.base_color,
+        metallic: s.params.metallic,
+        roughness: s.params.roughness,
+        transmission: s.params.transmission,
+        ior: s.params.ior,
+        specular: s.params.specular,
+        specular_color: s.params.specular_color,
+        opacity: if material.alpha_mode == AlphaMode::Blend { s.params.alpha } else { 1.0 },
+        layers: s.params.layers,
     }
 }
 
