@@ -230,6 +230,74 @@ fn shade_one_triangle(
     })
 }
 
+/// Shades one pixel's samples with the renderer's surface code: their mean albedo (`miss_albedo`
+/// where a sample sees nothing), shading normal and depth, and the centre sample's AO point.
+fn shade_pixel(
+    scene: &Scene,
+    camera: &Camera,
+    miss_albedo: Vec3,
+    px: &[Option<raster::SampleHit>],
+    footprints: &raster::Footprints,
+) -> Shaded {
+    let n = raster::SAMPLES;
+    let inv = 1.0 / n as f32;
+    let mut out = Shaded::default();
+    if let Some(fast) = shade_one_triangle(scene, camera, px, footprints) {
+        return fast;
+    }
+    // Texture filters of the footprint, computed at a pixel's first sample on each textured
+    // triangle and shared by its other samples there (they lie within a pixel, where the
+    // perspective derivatives barely change).
+    let mut filters: Option<(u32, MaterialFootprint)> = None;
+    for (s, hit) in px.iter().enumerate() {
+        let Some(hit) = hit else {
+            out.albedo += miss_albedo * inv;
+            continue;
+        };
+        let t = &scene.triangles[hit.triangle as usize];
+        let b = hit.bary;
+        let m = &scene.materials[t.material as usize];
+        let p = t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
+        // The geometric normal per sample (not a table over every triangle: a dense mesh
+        // has far more triangles than the image has samples).
+        let ng = t.front_normal();
+        let d = camera_depth(camera, p);
+        // Textures are averaged over the sample's footprint, so that 9 samples see a
+        // texture finer than a pixel as the path tracer's many samples converge to it.
+        let f = if m.base_color_texture.is_some() || m.normal_texture.is_some() {
+            match filters {
+                Some((tri, f)) if tri == hit.triangle => f,
+                _ => {
+                    let f = texture_footprint(scene, hit.triangle, m, &footprints.bary_steps(hit, SAMPLE_FOOTPRINT));
+                    filters = Some((hit.triangle, f));
+                    f
+                }
+            }
+        } else {
+            MaterialFootprint::POINT
+        };
+        let uv = scene.tex_coords(hit.triangle, b);
+        let mut albedo = m.albedo_filtered(&scene.textures, uv, &f);
+        // COLOR_0 tints the base colour; emitters stay white in the albedo.
+        if !m.is_emissive() {
+            albedo *= scene.vertex_color(hit.triangle, b);
+        }
+        let tangent = m.tangent_normal_filtered(&scene.textures, uv, &f);
+        out.albedo += albedo * inv;
+        let normal_map = tangent.map(|value| NormalMap {
+            value,
+            uv: scene.uv_set(hit.triangle, m.normal_tex_coord()),
+            tangents: scene.tangents(hit.triangle),
+        });
+        out.normal += shading_normal(t, b, ng, normal_map) * inv;
+        out.depth += d * inv;
+        if s == n / 2 {
+            out.centre = Some(ao_point(camera, hit.triangle, t, b, p, ng, d));
+        }
+    }
+    out
+}
+
 /// The guide layers of one view.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GuidePass {
@@ -265,74 +333,9 @@ impl GuidePass {
     fn render_inner(scene: &Scene, bvh: &SceneBvh, camera: &Camera, settings: &GuideSettings) -> Self {
         let start = Instant::now();
         let (w, h) = (settings.width, settings.height);
-        let n = raster::SAMPLES;
-        let inv = 1.0 / n as f32;
         // A sample that sees nothing sees the environment: white albedo if it emits, like an
         // emitter's (and like the path tracer's albedo AOV).
         let miss_albedo = if scene.environment.is_black() { Vec3::ZERO } else { Vec3::ONE };
-        // Shade every sample with the renderer's surface code; keep the centre sample for AO.
-        let shade = |px: &[Option<raster::SampleHit>], footprints: &raster::Footprints| {
-            let mut out = Shaded::default();
-            if let Some(fast) = shade_one_triangle(scene, camera, px, footprints) {
-                return fast;
-            }
-            // Texture filters of the footprint, computed at a pixel's first sample on each textured
-            // triangle and shared by its other samples there (they lie within a pixel, where the
-            // perspective derivatives barely change).
-            let mut filters: Option<(u32, MaterialFootprint)> = None;
-            for (s, hit) in px.iter().enumerate() {
-                let Some(hit) = hit else {
-                    out.albedo += miss_albedo * inv;
-                    continue;
-                };
-                let t = &scene.triangles[hit.triangle as usize];
-                let b = hit.bary;
-                let m = &scene.materials[t.material as usize];
-                let p = t.p[0] * b.x + t.p[1] * b.y + t.p[2] * b.z;
-                // The geometric normal per sample (not a table over every triangle: a dense mesh
-                // has far more triangles than the image has samples).
-                let ng = t.front_normal();
-                let d = camera_depth(camera, p);
-                // Textures are averaged over the sample's footprint, so that 9 samples see a
-                // texture finer than a pixel as the path tracer's many samples converge to it.
-                let f = if m.base_color_texture.is_some() || m.normal_texture.is_some() {
-                    match filters {
-                        Some((tri, f)) if tri == hit.triangle => f,
-                        _ => {
-                            let f = texture_footprint(
-                                scene,
-                                hit.triangle,
-                                m,
-                                &footprints.bary_steps(hit, SAMPLE_FOOTPRINT),
-                            );
-                            filters = Some((hit.triangle, f));
-                            f
-                        }
-                    }
-                } else {
-                    MaterialFootprint::POINT
-                };
-                let uv = scene.tex_coords(hit.triangle, b);
-                let mut albedo = m.albedo_filtered(&scene.textures, uv, &f);
-                // COLOR_0 tints the base colour; emitters stay white in the albedo.
-                if !m.is_emissive() {
-                    albedo *= scene.vertex_color(hit.triangle, b);
-                }
-                let tangent = m.tangent_normal_filtered(&scene.textures, uv, &f);
-                out.albedo += albedo * inv;
-                let normal_map = tangent.map(|value| NormalMap {
-                    value,
-                    uv: scene.uv_set(hit.triangle, m.normal_tex_coord()),
-                    tangents: scene.tangents(hit.triangle),
-                });
-                out.normal += shading_normal(t, b, ng, normal_map) * inv;
-                out.depth += d * inv;
-                if s == n / 2 {
-                    out.centre = Some(ao_point(camera, hit.triangle, t, b, p, ng, d));
-                }
-            }
-            out
-        };
         // The layers are written in place, a band of rows at a time.
         let pixels = w as usize * h as usize;
         let (mut albedo, mut normal) = (vec![Vec3::ZERO; pixels], vec![Vec3::ZERO; pixels]);
@@ -349,7 +352,7 @@ impl GuidePass {
             .collect();
         let bounds = bvh.scene_bounds();
         raster::rasterize(scene, &bounds, camera, w, h, bands, |band, i, px, footprints| {
-            let s = shade(px, footprints);
+            let s = shade_pixel(scene, camera, miss_albedo, px, footprints);
             (band.albedo[i], band.normal[i], band.depth[i], band.centre[i]) = (s.albedo, s.normal, s.depth, s.centre);
         });
         let radius =
