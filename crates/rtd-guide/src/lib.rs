@@ -230,8 +230,10 @@ fn shade_one_triangle(
     })
 }
 
-/// Shades one pixel's samples with the renderer's surface code: their mean albedo (`miss_albedo`
-/// where a sample sees nothing), shading normal and depth, and the centre sample's AO point.
+/// Shades one pixel's samples with the renderer's surface code (through
+/// [`shade_one_triangle`] when it applies): albedo, shading normal and depth averaged over all
+/// the pixel's samples (a sample that sees nothing adds `miss_albedo` and zero normal and
+/// depth), and the centre sample's AO point.
 fn shade_pixel(
     scene: &Scene,
     camera: &Camera,

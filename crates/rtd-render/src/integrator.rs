@@ -148,10 +148,10 @@ impl Integrator<'_> {
         PathResult { radiance, aov, rays }
     }
 
-    /// Radiance (times the path throughput `beta`) a ray that escapes along `d` brings back from the environment, MIS-weighted
-    /// against light sampling at the previous vertex. A camera ray that escapes sees the
-    /// environment: a light, white in the albedo AOV as emitters are (see `Material::albedo`),
-    /// unless the environment is black.
+    /// Radiance, times the path throughput `beta`, that a ray escaping along `d` brings back
+    /// from the environment, MIS-weighted against light sampling at the previous vertex. A
+    /// camera ray that escapes sees the environment: a light, white in the albedo AOV as
+    /// emitters are (see `Material::albedo`), unless the environment is black.
     #[inline(always)]
     fn escaped(&self, beta: Vec3, d: Vec3, depth: u32, prev: &PrevVertex, aov: &mut Aov) -> Vec3 {
         if depth == 0 && self.lights.has_environment() {
@@ -169,8 +169,9 @@ impl Integrator<'_> {
         beta * le * w
     }
 
-    /// Emitted radiance (times the path throughput `beta`) toward `wo` at a surface BSDF sampling hit (front side only unless
-    /// double-sided), MIS-weighted against light sampling at the previous vertex.
+    /// Emitted radiance toward `wo`, times the path throughput `beta`, at a surface the path
+    /// hits (front side only unless double-sided): unweighted after the camera or a delta
+    /// bounce, else MIS-weighted against light sampling at the previous vertex.
     #[inline(always)]
     fn emitted(&self, beta: Vec3, s: &Surface, material: &Material, wo: Vec3, prev: &PrevVertex) -> Vec3 {
         if s.params.emission == Vec3::ZERO || !(material.double_sided || wo.dot(s.ng) > 0.0) {
@@ -190,10 +191,11 @@ impl Integrator<'_> {
     }
 
     /// Next-event estimation at `s`: one light chosen and sampled, its unoccluded contribution
-    /// weighted by the power heuristic against BSDF sampling (delta lights unweighted), and
-    /// attenuated by the medium the path is in; `wo` is given in world and local space. Returns the radiance (times the path
-    /// throughput `beta`) and the shadow rays traced. Draws its three numbers whether or not the BSDF
-    /// can use them, so the sample stream does not depend on the material.
+    /// weighted by the power heuristic against BSDF sampling (delta lights unweighted), and a
+    /// light point's attenuated by the medium the path is in (a ray to infinity leaves it).
+    /// `wo` is given in world and local space. Returns the radiance, times the path
+    /// throughput `beta`, and the shadow rays traced. Draws its three numbers whether or not
+    /// the BSDF can use them, so the sample stream does not depend on the material.
     #[inline(always)]
     fn next_event(
         &self,
