@@ -226,6 +226,46 @@ fn variance_planes_are_read_and_hold_to_burn_tiling_and_nan() {
     assert!(e.contains("variance") && e.contains("4x4"), "{e}");
 }
 
+/// Denoising commutes with exposure: a render scaled by k (colour by k, its variance by k²), as
+/// from a scene in other units or an exposure change before export, denoises to the unscaled
+/// render's output times k, because auto-exposure maps both to the same encoded planes (before
+/// 2026-12-06 a fixed luminance floor and a fixed input bound broke this: the worst pixel was
+/// off by 1% of the image's mean at k = 1e-4 and 20% at k = 1e6).
+#[test]
+fn denoising_commutes_with_scaling_the_render_from_1e_minus_12_to_1e12() {
+    let scene = rtd::render::RenderScene::new(common::cornell());
+    let cam = scene.scene.cameras[0].clone();
+    let (w, h) = (64, 48);
+    let settings = rtd::render::RenderSettings::new(w, h).seed(9);
+    let tracer = rtd::render::PathTracer::new(&scene, cam.clone(), settings).unwrap();
+    let mut film = tracer.film();
+    tracer.render(&mut film, 8).unwrap();
+    let g =
+        rtd::guide::GuidePass::render(&scene.scene, &scene.bvh, &cam, &rtd::guide::GuideSettings::new(w, h)).unwrap();
+    let (color, variance) = (film.beauty(), film.variance().unwrap());
+    let m = model();
+    let base = m.denoise(&full_input(&color, &g).variance(Some(&variance))).unwrap();
+    let mean = base.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3 * base.pixels.len()) as f64;
+    assert!(mean > 1e-3, "the box is lit: mean {mean}");
+    let scaled = |img: &HdrImage, k: f32| HdrImage::from_pixels(w, h, img.pixels.iter().map(|p| *p * k).collect());
+    for k in [1e-12f32, 1e-9, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 0.37, 37.0, 1e3, 1e4, 1e5, 1e6, 1e9, 1e12] {
+        let (c, v) = (scaled(&color, k), scaled(&variance, k * k));
+        let out = m.denoise(&full_input(&c, &g).variance(Some(&v))).unwrap();
+        // Largest difference from k × the unscaled output, relative to the pixel (floored at a
+        // hundredth of the image's mean, for the box's black pixels).
+        let worst = out
+            .pixels
+            .iter()
+            .zip(&base.pixels)
+            .map(|(o, b)| {
+                let (o, b) = (o.as_dvec3() / k as f64, b.as_dvec3());
+                ((o - b).abs() / (b.abs() + glam::DVec3::splat(0.01 * mean))).max_element()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 2e-5, "k = {k}: the output differs from k x the unscaled one by {worst}, relative");
+    }
+}
+
 #[test]
 fn one_pixel_and_odd_sizes_work() {
     for (w, h) in [(1u32, 1u32), (3, 17), (17, 5)] {

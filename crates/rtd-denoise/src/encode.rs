@@ -9,8 +9,19 @@ use rtd_image::{luminance, HdrImage};
 use crate::planes::INPUT_CHANNELS;
 use crate::DenoiseError;
 
-/// Largest colour value accepted before exposure; +Inf and larger values are clamped to it.
-pub const MAX_INPUT: f32 = 1e7;
+/// Largest colour value accepted after exposure (about 3·10⁸ times the key's grey); +Inf and
+/// larger values are clamped to it. Bounding the exposed value rather than the raw one keeps
+/// encoding independent of the image's units.
+pub const MAX_EXPOSED: f32 = 1e9;
+
+/// Exposures are kept within [1/`MAX_EXPOSURE`, `MAX_EXPOSURE`]: images whose log-average
+/// luminance lies between about 1e-19 and 1e19 encode the same at any scale.
+pub const MAX_EXPOSURE: f32 = 1e20;
+
+/// Lit pixels darker than this fraction of the image's mean luminance count at it in the
+/// log-average, so that a few nearly black samples cannot drag the exposure up; a fraction
+/// rather than a fixed level, so the exposure scales exactly with the image.
+const LOG_AVERAGE_FLOOR: f64 = 1e-6;
 
 /// The value [`auto_exposure`] maps the log-average luminance to (middle grey).
 pub const DEFAULT_KEY: f32 = 0.18;
@@ -41,7 +52,7 @@ impl Default for Encoding {
 impl Encoding {
     /// The exposure of `color` under this encoding: [`auto_exposure`] scaled to the key.
     pub fn exposure(&self, color: &HdrImage) -> f32 {
-        (auto_exposure(color) * (self.key / DEFAULT_KEY)).clamp(1e-8, 1e8)
+        (auto_exposure(color) * (self.key / DEFAULT_KEY)).clamp(1.0 / MAX_EXPOSURE, MAX_EXPOSURE)
     }
 }
 
@@ -126,41 +137,45 @@ pub(crate) fn clean(x: f32, lo: f32, hi: f32) -> f32 {
 pub(crate) const PIXEL_CHUNK: usize = 16384;
 
 /// Auto-exposure: the scale that maps the log-average luminance of the lit pixels to 0.18
-/// (1 for an all-black image).
+/// (1 for an all-black image). Scaling the image by k scales the exposure by 1/k: black pixels
+/// are left out, lit ones count at no less than a fixed fraction of the mean, and non-finite
+/// ones are left out as broken.
 pub fn auto_exposure(color: &HdrImage) -> f32 {
-    // Sum of ln(luminance) over lit pixels, by fixed chunks added in order, so the result does
-    // not depend on the thread count.
-    let partial: Vec<(f64, usize)> = color
-        .pixels
-        .par_chunks(PIXEL_CHUNK)
-        .map(|chunk| {
-            let (mut sum, mut n) = (0.0f64, 0usize);
-            for p in chunk {
-                let l = luminance(Vec3::new(
-                    clean(p.x, 0.0, MAX_INPUT),
-                    clean(p.y, 0.0, MAX_INPUT),
-                    clean(p.z, 0.0, MAX_INPUT),
-                ));
-                if l > 1e-8 {
-                    sum += (l as f64).ln();
-                    n += 1;
-                }
-            }
-            (sum, n)
-        })
-        .collect();
-    let (sum, n) = partial.iter().fold((0.0f64, 0usize), |(s, n), (ps, pn)| (s + ps, n + pn));
-    if n == 0 {
+    // Luminance of a pixel for the statistics: None where black or not finite. Sums run over
+    // fixed chunks added in order, so the result does not depend on the thread count.
+    let lum = |p: &Vec3| {
+        let l = luminance(Vec3::new(p.x.max(0.0), p.y.max(0.0), p.z.max(0.0))) as f64;
+        (l > 0.0 && l.is_finite()).then_some(l)
+    };
+    let sum_chunks = |f: &(dyn Fn(f64) -> f64 + Sync)| -> (f64, usize) {
+        let partial: Vec<(f64, usize)> = color
+            .pixels
+            .par_chunks(PIXEL_CHUNK)
+            .map(|chunk| chunk.iter().filter_map(lum).fold((0.0, 0), |(s, n), l| (s + f(l), n + 1)))
+            .collect();
+        partial.iter().fold((0.0, 0), |(s, n), (ps, pn)| (s + ps, n + pn))
+    };
+    let (sum, n) = sum_chunks(&|l| l);
+    if n == 0 || !sum.is_finite() {
         return 1.0;
     }
-    // Geometric mean of luminance over lit pixels.
-    let log_avg = (sum / n as f64).exp();
-    ((DEFAULT_KEY as f64 / log_avg) as f32).clamp(1e-8, 1e8)
+    let floor = LOG_AVERAGE_FLOOR * sum / n as f64;
+    // Geometric mean of luminance over lit pixels, each at least the floor.
+    let (log_sum, _) = sum_chunks(&|l| l.max(floor).ln());
+    let log_avg = (log_sum / n as f64).exp();
+    ((DEFAULT_KEY as f64 / log_avg) as f32).clamp(1.0 / MAX_EXPOSURE, MAX_EXPOSURE)
 }
 
-/// The colour transfer: y = ln(1 + x · exposure).
+/// The largest raw value that stays within [`MAX_EXPOSED`] at `exposure` (finite).
+#[inline]
+fn max_raw(exposure: f32) -> f32 {
+    (MAX_EXPOSED / exposure).min(f32::MAX)
+}
+
+/// The colour transfer: y = ln(1 + x · exposure), x sanitised and x · exposure at most
+/// [`MAX_EXPOSED`].
 pub fn encode_color(x: f32, exposure: f32) -> f32 {
-    transfer(clean(x, 0.0, MAX_INPUT), exposure)
+    transfer(clean(x, 0.0, max_raw(exposure)), exposure)
 }
 
 /// ln(1 + x · exposure) of an already sanitised x.
@@ -259,8 +274,8 @@ fn encode_plane(
 }
 
 /// dst[j] = transfer(value of channel k at image pixel index[j] ÷ demodulation factor there),
-/// the value being the colour clamped to [0, [`MAX_INPUT`]] or the standard deviation of a
-/// variance clamped to [0, MAX_INPUT²] (`what`): the colour and deviation planes at any pixels,
+/// the value being the colour or the standard deviation of a variance (`what`), sanitised and
+/// clamped so that the exposed value is at most [`MAX_EXPOSED`]: the colour and deviation planes at any pixels,
 /// whole planes or a tile's window ([`crate::plane_encoder::PlaneEncoder`]). The demodulation
 /// factor is at least DEMOD_EPS, so the quotient is finite, and is not clamped again, so
 /// demodulated HDR keeps its range.
@@ -273,10 +288,11 @@ pub(crate) fn encode_values(
     exposure: f32,
     what: Estimate,
 ) {
+    let max = max_raw(exposure);
     match what {
-        Estimate::Color => gather_divided(dst, index, image, albedo, k, |x| clean(x, 0.0, MAX_INPUT)),
+        Estimate::Color => gather_divided(dst, index, image, albedo, k, |x| clean(x, 0.0, max)),
         Estimate::Deviation => {
-            gather_divided(dst, index, image, albedo, k, |x| clean(x, 0.0, MAX_INPUT * MAX_INPUT).sqrt())
+            gather_divided(dst, index, image, albedo, k, |x| clean(x, 0.0, f32::MAX).sqrt().min(max))
         }
     }
     // The transfer in a loop of its own, with no branches, so it vectorises.
@@ -342,6 +358,41 @@ mod tests {
         // A model's key scales it: the log-average goes to the key instead.
         let key = Encoding { key: 1.44, ..Encoding::default() };
         assert!((key.exposure(&img) - 1.44).abs() < 1e-5);
+    }
+
+    /// The exposure scales as 1/k when the image does, from 1e-15 to 1e15, with nearly black
+    /// and non-finite pixels in it; a nearly black pixel counts at the floor, not below it.
+    #[test]
+    fn exposure_scales_exactly_with_the_image_and_ignores_broken_pixels() {
+        let mut pixels: Vec<Vec3> = (0..64).map(|i| Vec3::splat(0.05 + 0.02 * i as f32)).collect();
+        pixels[3] = Vec3::splat(1e-12);
+        pixels[9] = Vec3::ZERO;
+        let base = auto_exposure(&HdrImage::from_pixels(8, 8, pixels.clone()));
+        for k in [1e-15f32, 1e-9, 1e-4, 0.3, 7.0, 1e4, 1e9, 1e15] {
+            let img = HdrImage::from_pixels(8, 8, pixels.iter().map(|p| *p * k).collect());
+            let ratio = auto_exposure(&img) * k / base;
+            assert!((ratio - 1.0).abs() < 1e-5, "k = {k}: exposure × k is {ratio} of the unscaled one");
+        }
+        // The nearly black pixel counts at 1e-6 of the mean, the black one not at all.
+        let mean = pixels.iter().map(|p| luminance(*p) as f64).sum::<f64>() / 63.0;
+        let logs: f64 = pixels.iter().filter(|p| p.x > 0.0).map(|p| (luminance(*p) as f64).max(1e-6 * mean).ln()).sum();
+        assert!((base as f64 - 0.18 / (logs / 63.0).exp()).abs() < 1e-6 * base as f64);
+        // NaN, +Inf and negative pixels change nothing.
+        let mut broken = pixels.clone();
+        broken.extend([Vec3::new(f32::NAN, 0.0, 0.0), Vec3::splat(f32::INFINITY), Vec3::splat(-3.0)]);
+        broken.push(Vec3::ZERO);
+        assert_eq!(auto_exposure(&HdrImage::from_pixels(17, 4, broken)), base);
+    }
+
+    /// Encoding is bounded in exposed units: the same exposed value encodes the same at any
+    /// exposure, and +Inf encodes as [`MAX_EXPOSED`] does.
+    #[test]
+    fn the_bound_on_input_is_on_the_exposed_value() {
+        for e in [1e-20f32, 1e-6, 1.0, 1e6, 1e20] {
+            let big = encode_color(f32::INFINITY, e);
+            assert!((big - MAX_EXPOSED.ln_1p()).abs() < 1e-5, "exposure {e}: {big}");
+            assert!((encode_color(2.0 / e, e) - 2f32.ln_1p()).abs() < 1e-5, "exposure {e}");
+        }
     }
 
     #[test]
