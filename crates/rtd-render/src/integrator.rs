@@ -108,7 +108,8 @@ impl Integrator<'_> {
             let frame = Frame::from_normal(s.ns);
             let wo_l = frame.to_local(wo);
             let bsdf = Bsdf::new(bsdf_params(&s, material), wo_l);
-            let (direct, shadow_rays) = self.next_event(beta, &s, &frame, &bsdf, (wo, wo_l), medium, sampler);
+            let at = ShadingPoint { surface: &s, frame: &frame, bsdf: &bsdf, wo, wo_l };
+            let (direct, shadow_rays) = self.next_event(beta, &at, medium, sampler);
             radiance += direct;
             rays += shadow_rays;
 
@@ -190,23 +191,15 @@ impl Integrator<'_> {
         beta * s.params.emission * w
     }
 
-    /// Next-event estimation at `s`: one light chosen and sampled, its unoccluded contribution
+    /// Next-event estimation at `at`: one light chosen and sampled, its unoccluded contribution
     /// weighted by the power heuristic against BSDF sampling (delta lights unweighted), and a
     /// light point's attenuated by the medium the path is in (a ray to infinity leaves it).
-    /// `wo` is given in world and local space. Returns the radiance, times the path
-    /// throughput `beta`, and the shadow rays traced. Draws its three numbers whether or not
-    /// the BSDF can use them, so the sample stream does not depend on the material.
+    /// Returns the radiance, times the path throughput `beta`, and the shadow rays traced.
+    /// Draws its three numbers whether or not the BSDF can use them, so the sample stream does
+    /// not depend on the material.
     #[inline(always)]
-    fn next_event(
-        &self,
-        beta: Vec3,
-        s: &Surface,
-        frame: &Frame,
-        bsdf: &Bsdf,
-        (wo, wo_l): (Vec3, Vec3),
-        medium: Vec3,
-        sampler: &mut Sampler,
-    ) -> (Vec3, u32) {
+    fn next_event(&self, beta: Vec3, at: &ShadingPoint, medium: Vec3, sampler: &mut Sampler) -> (Vec3, u32) {
+        let ShadingPoint { surface: s, frame, bsdf, wo, wo_l } = *at;
         let (scene, bvh) = (self.scene, self.bvh);
         let u_select = sampler.get_1d();
         let u_light = sampler.get_2d();
@@ -242,6 +235,22 @@ impl Integrator<'_> {
         let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
         (beta * absorbed * f * ls.li * (w / ls.pdf), 1)
     }
+}
+
+/// Where a path scatters: the surface point, its shading frame and BSDF, and the direction
+/// toward the previous vertex in world (`wo`) and local (`wo_l`) space.
+#[derive(Clone, Copy)]
+struct ShadingPoint<'a> {
+    /// The surface point.
+    surface: &'a Surface,
+    /// Its shading frame.
+    frame: &'a Frame,
+    /// Its BSDF, for `wo_l`.
+    bsdf: &'a Bsdf,
+    /// Toward the previous vertex, world space.
+    wo: Vec3,
+    /// The same in the shading frame.
+    wo_l: Vec3,
 }
 
 /// What a path keeps of its previous scattering vertex, for the MIS weight of emitters that
