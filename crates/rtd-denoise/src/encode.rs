@@ -9,13 +9,13 @@ use rtd_image::{luminance, HdrImage};
 use crate::planes::INPUT_CHANNELS;
 use crate::DenoiseError;
 
-/// Largest colour value accepted after exposure (about 3·10⁸ times the key's grey); +Inf and
-/// larger values are clamped to it. Bounding the exposed value rather than the raw one keeps
+/// Largest colour value accepted after exposure (ln(1 + 10⁹) ≈ 20.7 after the transfer); +Inf
+/// and larger values are clamped to it. Bounding the exposed value rather than the raw one keeps
 /// encoding independent of the image's units.
 pub const MAX_EXPOSED: f32 = 1e9;
 
-/// Exposures are kept within [1/`MAX_EXPOSURE`, `MAX_EXPOSURE`]: images whose log-average
-/// luminance lies between about 1e-19 and 1e19 encode the same at any scale.
+/// Exposures are kept within [1/`MAX_EXPOSURE`, `MAX_EXPOSURE`], which no image whose
+/// log-average luminance lies between about 1e-19 and 1e19 reaches.
 pub const MAX_EXPOSURE: f32 = 1e20;
 
 /// Lit pixels darker than this fraction of the image's mean luminance count at it in the
@@ -275,8 +275,8 @@ fn encode_plane(
 
 /// dst[j] = transfer(value of channel k at image pixel index[j] ÷ demodulation factor there),
 /// the value being the colour or the standard deviation of a variance (`what`), sanitised and
-/// clamped so that the exposed value is at most [`MAX_EXPOSED`]: the colour and deviation planes at any pixels,
-/// whole planes or a tile's window ([`crate::plane_encoder::PlaneEncoder`]). The demodulation
+/// clamped so that the exposed value is at most [`MAX_EXPOSED`]: the colour and deviation
+/// planes at any pixels, whole planes or a tile's window ([`crate::plane_encoder::PlaneEncoder`]). The demodulation
 /// factor is at least DEMOD_EPS, so the quotient is finite, and is not clamped again, so
 /// demodulated HDR keeps its range.
 pub(crate) fn encode_values(
