@@ -18,9 +18,10 @@ pub const MAX_EXPOSED: f32 = 1e9;
 /// log-average luminance lies between about 1e-19 and 1e19 reaches.
 pub const MAX_EXPOSURE: f32 = 1e20;
 
-/// Lit pixels darker than this fraction of the image's mean luminance count at it in the
+/// Lit pixels darker than this fraction of the image's log-average luminance count at it in the
 /// log-average, so that a few nearly black samples cannot drag the exposure up; a fraction
-/// rather than a fixed level, so the exposure scales exactly with the image.
+/// rather than a fixed level, so the exposure scales exactly with the image, and of a
+/// geometric mean rather than the mean, so that one huge firefly cannot raise it.
 const LOG_AVERAGE_FLOOR: f64 = 1e-6;
 
 /// The value [`auto_exposure`] maps the log-average luminance to (middle grey).
@@ -138,8 +139,8 @@ pub(crate) const PIXEL_CHUNK: usize = 16384;
 
 /// Auto-exposure: the scale that maps the log-average luminance of the lit pixels to 0.18
 /// (1 for an all-black image). Scaling the image by k scales the exposure by 1/k: black pixels
-/// are left out, lit ones count at no less than a fixed fraction of the mean, and non-finite
-/// ones are left out as broken.
+/// are left out, lit ones count at no less than a fixed fraction of their plain log-average,
+/// and non-finite ones are left out as broken.
 pub fn auto_exposure(color: &HdrImage) -> f32 {
     // Luminance of a pixel for the statistics: None where black or not finite. Sums run over
     // fixed chunks added in order, so the result does not depend on the thread count.
@@ -155,11 +156,11 @@ pub fn auto_exposure(color: &HdrImage) -> f32 {
             .collect();
         partial.iter().fold((0.0, 0), |(s, n), (ps, pn)| (s + ps, n + pn))
     };
-    let (sum, n) = sum_chunks(&|l| l);
-    if n == 0 || !sum.is_finite() {
+    let (log_sum, n) = sum_chunks(&|l| l.ln());
+    if n == 0 {
         return 1.0;
     }
-    let floor = LOG_AVERAGE_FLOOR * sum / n as f64;
+    let floor = LOG_AVERAGE_FLOOR * (log_sum / n as f64).exp();
     // Geometric mean of luminance over lit pixels, each at least the floor.
     let (log_sum, _) = sum_chunks(&|l| l.max(floor).ln());
     let log_avg = (log_sum / n as f64).exp();
@@ -361,7 +362,8 @@ mod tests {
     }
 
     /// The exposure scales as 1/k when the image does, from 1e-15 to 1e15, with nearly black
-    /// and non-finite pixels in it; a nearly black pixel counts at the floor, not below it.
+    /// and non-finite pixels in it; a nearly black pixel counts at the floor, not below it, and
+    /// a firefly at f32::MAX counts as its own luminance and moves nothing else.
     #[test]
     fn exposure_scales_exactly_with_the_image_and_ignores_broken_pixels() {
         let mut pixels: Vec<Vec3> = (0..64).map(|i| Vec3::splat(0.05 + 0.02 * i as f32)).collect();
@@ -373,10 +375,20 @@ mod tests {
             let ratio = auto_exposure(&img) * k / base;
             assert!((ratio - 1.0).abs() < 1e-5, "k = {k}: exposure × k is {ratio} of the unscaled one");
         }
-        // The nearly black pixel counts at 1e-6 of the mean, the black one not at all.
-        let mean = pixels.iter().map(|p| luminance(*p) as f64).sum::<f64>() / 63.0;
-        let logs: f64 = pixels.iter().filter(|p| p.x > 0.0).map(|p| (luminance(*p) as f64).max(1e-6 * mean).ln()).sum();
-        assert!((base as f64 - 0.18 / (logs / 63.0).exp()).abs() < 1e-6 * base as f64);
+        // The nearly black pixel counts at 1e-6 of the plain log-average, the black one not at
+        // all; so does a firefly at f32::MAX, at its own luminance.
+        let expected = |pixels: &[Vec3]| {
+            let lums: Vec<f64> = pixels.iter().map(|p| luminance(*p) as f64).filter(|l| *l > 0.0).collect();
+            let n = lums.len() as f64;
+            let floor = 1e-6 * (lums.iter().map(|l| l.ln()).sum::<f64>() / n).exp();
+            0.18 / (lums.iter().map(|l| l.max(floor).ln()).sum::<f64>() / n).exp()
+        };
+        assert!((base as f64 - expected(&pixels)).abs() < 1e-6 * base as f64);
+        let mut firefly = pixels.clone();
+        firefly[20] = Vec3::splat(f32::MAX);
+        let e = auto_exposure(&HdrImage::from_pixels(8, 8, firefly.clone())) as f64;
+        assert!((e - expected(&firefly)).abs() < 1e-5 * e, "{e} against {}", expected(&firefly));
+        assert!(e > 0.05 * base as f64, "one firefly moved the exposure from {base} to {e}");
         // NaN, +Inf and negative pixels change nothing.
         let mut broken = pixels.clone();
         broken.extend([Vec3::new(f32::NAN, 0.0, 0.0), Vec3::splat(f32::INFINITY), Vec3::splat(-3.0)]);
