@@ -243,10 +243,10 @@ fn shade_pixel(
 ) -> Shaded {
     let n = raster::SAMPLES;
     let inv = 1.0 / n as f32;
-    let mut out = Shaded::default();
     if let Some(fast) = shade_one_triangle(scene, camera, px, footprints) {
         return fast;
     }
+    let mut out = Shaded::default();
     // Texture filters of the footprint, computed at a pixel's first sample on each textured
     // triangle and shared by its other samples there (they lie within a pixel, where the
     // perspective derivatives barely change).

@@ -81,7 +81,12 @@ impl Integrator<'_> {
             rays += 1;
             let t_min = if depth == 0 { t_near } else { 0.0 };
             let Some(hit) = bvh.intersect_within(scene, o, d, t_min, f32::INFINITY, leaving) else {
-                radiance += self.escaped(beta, d, depth, &prev, &mut aov);
+                // A camera ray that escapes sees the environment: a light, white in the albedo
+                // AOV as emitters are (see `Material::albedo`), unless the environment is black.
+                if depth == 0 && self.lights.has_environment() {
+                    aov.albedo = Vec3::ONE;
+                }
+                radiance += self.escaped(beta, d, &prev);
                 break;
             };
             if medium != Vec3::ZERO {
@@ -150,14 +155,9 @@ impl Integrator<'_> {
     }
 
     /// Radiance, times the path throughput `beta`, that a ray escaping along `d` brings back
-    /// from the environment, MIS-weighted against light sampling at the previous vertex. A
-    /// camera ray that escapes sees the environment: a light, white in the albedo AOV as
-    /// emitters are (see `Material::albedo`), unless the environment is black.
+    /// from the environment, MIS-weighted against light sampling at the previous vertex.
     #[inline(always)]
-    fn escaped(&self, beta: Vec3, d: Vec3, depth: u32, prev: &PrevVertex, aov: &mut Aov) -> Vec3 {
-        if depth == 0 && self.lights.has_environment() {
-            aov.albedo = Vec3::ONE;
-        }
+    fn escaped(&self, beta: Vec3, d: Vec3, prev: &PrevVertex) -> Vec3 {
         let le = self.scene.environment.radiance(d);
         if le == Vec3::ZERO {
             return Vec3::ZERO;
