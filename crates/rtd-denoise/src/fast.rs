@@ -133,6 +133,19 @@ impl Conv {
         self
     }
 
+    /// Two 1×1 convolutions of one input, their outputs stacked: x → [a(x), b(x)].
+    fn side_by_side(a: &Conv, b: &Conv) -> Self {
+        assert!(a.kh == 1 && a.kw == 1 && b.kh == 1 && b.kw == 1 && a.cin == b.cin);
+        let (cin, cout) = (a.cin, a.cout + b.cout);
+        let mut weights = Vec::with_capacity(cin * cout);
+        for ci in 0..cin {
+            weights.extend_from_slice(&a.weights[ci * a.cout..][..a.cout]);
+            weights.extend_from_slice(&b.weights[ci * b.cout..][..b.cout]);
+        }
+        let bias = [a.bias.clone(), b.bias.clone()].concat();
+        Conv { cin, cout, kh: 1, kw: 1, dil: 1, weights, bias, prepared: Prepared::Gemm }
+    }
+
     /// Two 1×1 convolutions side by side: [a_in, b_in] → [a(a_in), b(b_in)].
     fn block_diagonal(a: &Conv, b: &Conv) -> Self {
         assert!(a.kh == 1 && a.kw == 1 && b.kh == 1 && b.kw == 1);
@@ -466,6 +479,9 @@ pub struct FastNet {
     bottleneck: Vec<FastBlock>,
     decoders: Vec<FastDecoder>,
     output: Conv,
+    /// Per level, full resolution first, the kernel-predicting heads (kernel logits, then the
+    /// blend logit where there is one), which replace `output` when present.
+    heads: Option<Vec<Conv>>,
 }
 
 impl FastNet {
@@ -482,6 +498,21 @@ impl FastNet {
             bottleneck: net.bottleneck.iter().map(|b| FastBlock::from(b, kernel)).collect(),
             decoders: net.decoders.iter().map(|d| FastDecoder::from(d, kernel)).collect(),
             output: Conv::from(&net.output).for_kernel(kernel),
+            heads: net.kernel.as_ref().map(|k| {
+                let blends = k.blends.iter().map(|b| Some(Conv::from(b))).chain([None]);
+                k.kernels
+                    .iter()
+                    .zip(blends)
+                    .map(|(kc, b)| {
+                        let kc = Conv::from(kc);
+                        match b {
+                            Some(b) => Conv::side_by_side(&kc, &b),
+                            None => kc,
+                        }
+                        .for_kernel(kernel)
+                    })
+                    .collect()
+            }),
         }
     }
 
@@ -503,19 +534,38 @@ impl FastNet {
             let next = b.forward(&y, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
         }
+        let output = self.heads.as_ref().map_or(&self.output, |h| &h[0]);
+        // Kernel heads' logits at each level below the finest, coarsest first.
+        let mut logits = vec![];
         if self.decoders.is_empty() {
-            let out = self.output.run(&y, false, scratch);
+            let out = output.run(&y, false, scratch);
             scratch.recycle(y);
-            return out;
+            return self.finish(x, out, logits, scratch);
         }
         // The finest decoder level also runs the output convolution, band by band.
         for (l, dec) in self.decoders.iter().enumerate().rev() {
+            if let Some(heads) = &self.heads {
+                logits.push(heads[l + 1].run(&y, false, scratch));
+            }
             let skip = skips.pop().expect("one skip per decoder level");
-            let next = dec.forward(&y, &skip, (l == 0).then_some(&self.output), scratch);
+            let next = dec.forward(&y, &skip, (l == 0).then_some(output), scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
             scratch.recycle(skip);
         }
-        y
+        self.finish(x, y, logits, scratch)
+    }
+
+    /// The output of the finest level's `out`: itself for direct prediction, or the kernels
+    /// it and the coarser `logits` predict applied to `x`'s noisy colour.
+    fn finish(&self, x: &Map, out: Map, mut logits: Vec<Map>, scratch: &mut Scratch) -> Map {
+        if self.heads.is_none() {
+            return out;
+        }
+        logits.push(out);
+        logits.reverse();
+        let data = crate::kernel_output::apply_planar(&x.data, x.w, x.h, &logits);
+        logits.into_iter().for_each(|m| scratch.recycle(m));
+        Map { w: x.w, h: x.h, c: 3, data }
     }
 }
 
@@ -532,11 +582,15 @@ mod tests {
             DenoiserConfig::new(vec![8, 12, 16]).with_bottleneck_blocks(2),
             DenoiserConfig::new(vec![8]).with_bottleneck_blocks(1),
             DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(0),
+            DenoiserConfig::new(vec![8, 12, 16]).with_kernel_output(Some(true)),
+            DenoiserConfig::new(vec![8]).with_kernel_output(Some(true)),
         ];
         // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row;
         // 24×100 runs the full-resolution blocks in bands, the last one short.
         // 136×72 runs several Winograd vectors and batches per row, and bands at the coarse levels.
-        for (i, w, h) in [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100), (0, 136, 72)] {
+        let sizes =
+            [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100), (0, 136, 72), (3, 52, 44), (4, 20, 12)];
+        for (i, w, h) in sizes {
             let config = &configs[i];
             let net = config.init_seeded(&device, 3);
             let c = config.input_channels;

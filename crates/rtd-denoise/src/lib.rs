@@ -12,6 +12,7 @@ pub mod fast;
 pub mod feature_map;
 pub mod filter;
 pub mod infer;
+pub mod kernel_output;
 pub mod model;
 pub mod plane_encoder;
 pub mod planes;

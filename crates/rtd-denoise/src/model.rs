@@ -10,6 +10,7 @@ use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
+use crate::kernel_output::{upsample2, KernelOutput};
 
 /// Renumbers a module's parameters 1, 2, 3, … in traversal order. burn draws a random id for
 /// every parameter, and the ids are written into every record: two identical training runs
@@ -55,6 +56,10 @@ pub struct DenoiserConfig {
     /// of the training loss). Absent (older model files) means
     /// [`crate::encode::DEFAULT_KEY`]; read it through [`DenoiserConfig::exposure_key`].
     pub exposure_key: Option<f32>,
+    /// Whether the output is kernel-predicting ([`crate::kernel_output`]) instead of the
+    /// encoded colour itself. Absent (older model files) means no; read it through
+    /// [`DenoiserConfig::predicts_kernels`].
+    pub kernel_output: Option<bool>,
 }
 
 impl DenoiserConfig {
@@ -66,6 +71,11 @@ impl DenoiserConfig {
     /// Whether colour is demodulated by albedo (see the `demodulate` field).
     pub fn demodulates(&self) -> bool {
         self.demodulate.unwrap_or(false)
+    }
+
+    /// Whether the output is kernel-predicting (see the `kernel_output` field).
+    pub fn predicts_kernels(&self) -> bool {
+        self.kernel_output.unwrap_or(false)
     }
 
     /// The exposure key (see the `exposure_key` field).
@@ -165,7 +175,9 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
+        let kernel = self.predicts_kernels().then(|| KernelOutput::new(c, device));
         let net = DenoiserNet {
+            kernel,
             stem,
             encoders,
             bottleneck,
@@ -192,6 +204,9 @@ impl DenoiserConfig {
         for l in (0..levels - 1).rev() {
             r += (1 << l) * 2; // nearest upsample + 1×1 fuse + 3×3 conv at scale 2^l
         }
+        if self.predicts_kernels() {
+            r += KernelOutput::radius(levels);
+        }
         r
     }
 
@@ -209,6 +224,9 @@ impl DenoiserConfig {
         m += self.bottleneck_blocks as f64 * InceptionBlock::macs(c[last], c[last], self.prong) * scale(last);
         for l in 0..levels - 1 {
             m += ((c[l + 1] + c[l]) * c[l] + 9 * c[l] * c[l]) as f64 * scale(l);
+        }
+        if self.predicts_kernels() {
+            return m + KernelOutput::macs(c);
         }
         m + (c[0] * 3) as f64
     }
@@ -329,6 +347,8 @@ pub struct DenoiserNet {
     pub(crate) decoders: Vec<Decoder>,
     pub(crate) output: Conv2d,
     pub(crate) downsample: MaxPool2d,
+    /// The kernel-predicting heads, which replace `output` when present.
+    pub(crate) kernel: Option<KernelOutput>,
 }
 
 /// One decoder level: the upsampled coarse features and the skip are concatenated, fused by a
@@ -337,12 +357,6 @@ pub struct DenoiserNet {
 pub struct Decoder {
     pub(crate) fuse: Conv2d,
     pub(crate) refine: Conv2d,
-}
-
-/// Nearest-neighbour 2× upsampling: [N, C, H, W] → [N, C, 2H, 2W].
-fn upsample2(x: Tensor<4>) -> Tensor<4> {
-    let [n, c, h, w] = x.dims();
-    x.reshape([n, c, h, 1, w, 1]).expand([n, c, h, 2, w, 2]).reshape([n, c, 2 * h, 2 * w])
 }
 
 impl DenoiserNet {
@@ -361,10 +375,23 @@ impl DenoiserNet {
         self.map(&mut NumberedParams(0))
     }
 
+    /// The same network with kernel-predicting heads ([`crate::kernel_output`]) drawn from
+    /// `seed` in place of its direct output (a network that has them keeps them): how a
+    /// trained direct-prediction model seeds a kernel-predicting one.
+    pub fn with_kernel_output(mut self, config: &DenoiserConfig, device: &Device, seed: u64) -> Self {
+        if self.kernel.is_none() {
+            let _held = backend_rng();
+            device.seed(seed);
+            self.kernel = Some(KernelOutput::new(&config.channels, device));
+        }
+        self.map(&mut NumberedParams(0))
+    }
+
     /// `x`: [N, C, H, W] encoded inputs (C the config's input planes), H and W multiples of the config's alignment
     /// → [N, 3, H, W] encoded colour.
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let mut skips = Vec::with_capacity(self.encoders.len());
+        let noisy = self.kernel.as_ref().map(|_| x.clone().narrow(1, 0, 3)); // [N, 3, H, W]
         let mut y = relu(self.stem.forward(x)); // [N, c0, H, W]
         for (l, enc) in self.encoders.iter().enumerate() {
             if l > 0 {
@@ -377,13 +404,21 @@ impl DenoiserNet {
             y = b.forward(y); // [N, c(last), H/2^(L−1), W/2^(L−1)]
         }
         skips.pop();
+        let mut levels = vec![y.clone()]; // decoder outputs, coarsest first
         for dec in self.decoders.iter().rev() {
             let skip = skips.pop().expect("one skip per decoder level"); // [N, c(l), H/2^l, W/2^l]
             let up = upsample2(y); // [N, c(l+1), H/2^l, W/2^l]
             let fused = relu(dec.fuse.forward(Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
             y = relu(dec.refine.forward(fused)); // [N, c(l), H/2^l, W/2^l]
+            levels.push(y.clone());
         }
-        self.output.forward(y) // [N, 3, H, W]
+        match (&self.kernel, noisy) {
+            (Some(kernel), Some(noisy)) => {
+                levels.reverse();
+                kernel.forward(noisy, &levels) // [N, 3, H, W]
+            }
+            _ => self.output.forward(y), // [N, 3, H, W]
+        }
     }
 }
 
@@ -457,6 +492,31 @@ mod tests {
         // Training widens on the autodiff device, whose parameters must stay trackable leaves.
         let trained = narrow.init(&Device::flex().autodiff()).widen_input(c);
         assert!(trained.stem.weight.val().is_require_grad());
+    }
+
+    /// A kernel-predicting network keeps a flat noisy colour flat whatever its weights, a
+    /// trained direct network gains such heads from a seed, and the heads add their cost and
+    /// reach to the config's figures.
+    #[test]
+    fn kernel_heads_keep_flat_colour_and_attach_to_a_direct_network() {
+        let device = Device::flex();
+        let direct = DenoiserConfig::new(vec![8, 12]);
+        let kp = direct.clone().with_kernel_output(Some(true));
+        assert!(kp.macs_per_pixel() > direct.macs_per_pixel());
+        assert!(kp.receptive_radius() > direct.receptive_radius());
+        let (h, w, c) = (8, 12, INPUT_CHANNELS);
+        let mut values: Vec<f32> = (0..c * h * w).map(|i| (i * 37 % 101) as f32 / 50.0).collect();
+        values[..3 * h * w].fill(0.75);
+        let x = Tensor::<4>::from_data(TensorData::new(values, [1, c, h, w]), &device);
+        let heads = |seed| direct.init_seeded(&device, 3).with_kernel_output(&kp, &device, seed);
+        let out: Vec<f32> = heads(4).forward(x.clone()).into_data().try_to_vec().unwrap();
+        assert!(out.iter().all(|v| (v - 0.75).abs() < 1e-5), "{:?}", &out[..4]);
+        let weights = |n: DenoiserNet| -> Vec<f32> {
+            n.kernel.unwrap().kernels[0].weight.val().into_data().try_to_vec().unwrap()
+        };
+        assert_eq!(weights(heads(4)), weights(heads(4)));
+        assert_ne!(weights(heads(4)), weights(heads(5)));
+        assert_eq!(kp.init(&device).forward(x).dims(), [1, 3, h, w]);
     }
 
     #[test]

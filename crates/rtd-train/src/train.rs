@@ -79,13 +79,17 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     if config.input_channels > options.config.input_channels {
         return Err(TrainError::msg(&cfg_path, "reads more input planes than the network being trained"));
     }
+    // A direct-prediction model seeds a kernel-predicting one: its heads start random.
+    let adds_kernels = options.config.predicts_kernels() && !config.predicts_kernels();
     let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
-    if config.clone().with_input_channels(options.config.input_channels) != options.config {
+    let target = config.clone().with_input_channels(options.config.input_channels);
+    if target.with_kernel_output(options.config.kernel_output) != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = load_fenced(path, || ModuleRecord::load(path))?;
     let net = config.init(device).try_load_record(record).map_err(|e| TrainError::msg(path, e.to_string()))?;
-    Ok(if narrower { net.widen_input(options.config.input_channels) } else { net })
+    let net = if narrower { net.widen_input(options.config.input_channels) } else { net };
+    Ok(if adds_kernels { net.with_kernel_output(&options.config, device, options.seed) } else { net })
 }
 
 /// Trains (or, with `resume`, continues training) on the dataset in `data` (and those of

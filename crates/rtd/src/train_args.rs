@@ -145,6 +145,11 @@ pub struct TrainModelArgs {
     /// model's config; with --init, the initial model may lack it).
     #[arg(long)]
     pub demodulate: bool,
+    /// Predict per-pixel kernels that average the noisy colour at each level, blended coarse
+    /// to fine (multi-scale kernel prediction), instead of the colour itself (saved in the
+    /// model's config; with --init, a direct-prediction model gets new, random heads).
+    #[arg(long)]
+    pub kernel_output: bool,
     /// Exposure the log-average luminance is mapped to before the log transfer (saved in the
     /// model's config; default 0.18, or the --init model's): larger keys give dark regions more
     /// of the transfer's range and of the loss

@@ -113,6 +113,7 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         }
     };
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
+    let config = if model.kernel_output { config.with_kernel_output(Some(true)) } else { config };
     let config = match model.exposure_key {
         Some(k) => config.with_exposure_key(Some(k)),
         None => config,
