@@ -253,6 +253,14 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let cfg = std::fs::read_to_string(dir.path().join("e/model.json")).unwrap();
     let cfg = rtd::denoise::DenoiserConfig::from_json(&cfg).unwrap();
     assert!(cfg.demodulates() && cfg.exposure_key() == 1.44);
+    // A direct-prediction model seeds a kernel-predicting run (new heads, drawn from the seed),
+    // whose model says so, loads and denoises to something else than its seed computes.
+    let kernels = tuned.clone().config(tiny_config().with_kernel_output(Some(true)));
+    train(&data, &dir.path().join("k"), &kernels, false, &Quiet).unwrap();
+    let cfg = std::fs::read_to_string(dir.path().join("k/model.json")).unwrap();
+    assert!(rtd::denoise::DenoiserConfig::from_json(&cfg).unwrap().predicts_kernels());
+    let k = run("k");
+    assert!(k.iter().all(|v| v.is_finite()) && diff(&run("a"), &k) > 1e-3);
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();
