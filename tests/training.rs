@@ -261,6 +261,10 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     assert!(rtd::denoise::DenoiserConfig::from_json(&cfg).unwrap().predicts_kernels());
     let k = run("k");
     assert!(k.iter().all(|v| v.is_finite()) && diff(&run("a"), &k) > 1e-3);
+    // Not the other way: a kernel-predicting model cannot seed a direct run.
+    let back = tuned.clone().init(Some(dir.path().join("k/model.bpk")));
+    let err = train(&data, &dir.path().join("kd"), &back, false, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("another network"), "{err}");
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();

@@ -83,7 +83,8 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     let adds_kernels = options.config.predicts_kernels() && !config.predicts_kernels();
     let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
     let target = config.clone().with_input_channels(options.config.input_channels);
-    if target.with_kernel_output(options.config.kernel_output) != options.config {
+    let target = if adds_kernels { target.with_kernel_output(options.config.kernel_output) } else { target };
+    if target != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }
     let record = load_fenced(path, || ModuleRecord::load(path))?;
