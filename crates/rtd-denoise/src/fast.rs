@@ -499,19 +499,12 @@ impl FastNet {
             decoders: net.decoders.iter().map(|d| FastDecoder::from(d, kernel)).collect(),
             output: Conv::from(&net.output).for_kernel(kernel),
             heads: net.kernel.as_ref().map(|k| {
-                let blends = k.blends.iter().map(|b| Some(Conv::from(b))).chain([None]);
-                k.kernels
-                    .iter()
-                    .zip(blends)
-                    .map(|(kc, b)| {
-                        let kc = Conv::from(kc);
-                        match b {
-                            Some(b) => Conv::side_by_side(&kc, &b),
-                            None => kc,
-                        }
-                        .for_kernel(kernel)
-                    })
-                    .collect()
+                let head = |(l, kc)| {
+                    let kc = Conv::from(kc);
+                    let both = k.blends.get(l).map(|b| Conv::side_by_side(&kc, &Conv::from(b)));
+                    both.unwrap_or(kc).for_kernel(kernel)
+                };
+                k.kernels.iter().enumerate().map(head).collect()
             }),
         }
     }

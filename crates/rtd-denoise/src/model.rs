@@ -391,7 +391,8 @@ impl DenoiserNet {
     /// → [N, 3, H, W] encoded colour.
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let mut skips = Vec::with_capacity(self.encoders.len());
-        let noisy = self.kernel.as_ref().map(|_| x.clone().narrow(1, 0, 3)); // [N, 3, H, W]
+        // Kernel heads read the noisy colour and every level's decoder output.
+        let mut kernel_inputs = self.kernel.as_ref().map(|_| (x.clone().narrow(1, 0, 3), vec![])); // [N, 3, H, W]
         let mut y = relu(self.stem.forward(x)); // [N, c0, H, W]
         for (l, enc) in self.encoders.iter().enumerate() {
             if l > 0 {
@@ -404,16 +405,18 @@ impl DenoiserNet {
             y = b.forward(y); // [N, c(last), H/2^(L−1), W/2^(L−1)]
         }
         skips.pop();
-        let mut levels = vec![y.clone()]; // decoder outputs, coarsest first
         for dec in self.decoders.iter().rev() {
+            if let Some((_, levels)) = &mut kernel_inputs {
+                levels.push(y.clone()); // coarsest first
+            }
             let skip = skips.pop().expect("one skip per decoder level"); // [N, c(l), H/2^l, W/2^l]
             let up = upsample2(y); // [N, c(l+1), H/2^l, W/2^l]
             let fused = relu(dec.fuse.forward(Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
             y = relu(dec.refine.forward(fused)); // [N, c(l), H/2^l, W/2^l]
-            levels.push(y.clone());
         }
-        match (&self.kernel, noisy) {
-            (Some(kernel), Some(noisy)) => {
+        match (&self.kernel, kernel_inputs) {
+            (Some(kernel), Some((noisy, mut levels))) => {
+                levels.push(y);
                 levels.reverse();
                 kernel.forward(noisy, &levels) // [N, 3, H, W]
             }
