@@ -12,6 +12,7 @@ use burn::tensor::{Device, Tensor};
 use rayon::prelude::*;
 
 use crate::feature_map::Map;
+use crate::tensor_ops::{conv1x1, upsample2};
 
 /// The side of each predicted kernel.
 pub const KERNEL_SIZE: usize = 5;
@@ -66,14 +67,14 @@ impl KernelOutput {
             if l > 0 {
                 level = box_down2(level);
             }
-            let weights = softmax(self.kernels[l].forward(f.clone()), 1); // [N, K², H/2^l, W/2^l]
+            let weights = softmax(conv1x1(&self.kernels[l], f.clone()), 1); // [N, K², H/2^l, W/2^l]
             filtered.push(apply_kernels(level.clone(), weights));
         }
         // Coarse to fine: a level's own low band (its 2× box mean, upsampled) is replaced by the
         // coarser result in the proportion the blend head predicts.
         let mut out = filtered.pop().expect("at least one level");
         for (l, fine) in filtered.into_iter().enumerate().rev() {
-            let alpha = sigmoid(self.blends[l].forward(features[l].clone())); // [N, 1, h, w]
+            let alpha = sigmoid(conv1x1(&self.blends[l], features[l].clone())); // [N, 1, h, w]
             let low = upsample2(box_down2(fine.clone()));
             out = fine + (upsample2(out) - low) * alpha;
         }
@@ -85,12 +86,6 @@ impl KernelOutput {
 fn box_down2(x: Tensor<4>) -> Tensor<4> {
     let [n, c, h, w] = x.dims();
     x.reshape([n, c, h / 2, 2, w / 2, 2]).mean_dim(5).mean_dim(3).reshape([n, c, h / 2, w / 2])
-}
-
-/// Nearest-neighbour 2× upsampling: [N, C, H, W] → [N, C, 2H, 2W].
-pub(crate) fn upsample2(x: Tensor<4>) -> Tensor<4> {
-    let [n, c, h, w] = x.dims();
-    x.reshape([n, c, h, 1, w, 1]).expand([n, c, h, 2, w, 2]).reshape([n, c, 2 * h, 2 * w])
 }
 
 /// Edge-replicated padding of `p` pixels on every side.

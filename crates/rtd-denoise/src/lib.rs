@@ -17,6 +17,7 @@ pub mod model;
 pub mod plane_encoder;
 pub mod planes;
 pub mod pooling;
+mod tensor_ops;
 pub mod winograd;
 
 pub use encode::DenoiseInput;

@@ -10,7 +10,8 @@ use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
-use crate::kernel_output::{upsample2, KernelOutput};
+use crate::kernel_output::KernelOutput;
+use crate::tensor_ops::{conv1x1, max3x3, min3x3, upsample2};
 
 /// Renumbers a module's parameters 1, 2, 3, … in traversal order. burn draws a random id for
 /// every parameter, and the ids are written into every record: two identical training runs
@@ -279,7 +280,6 @@ pub struct InceptionBlock {
     pub(crate) max_proj: Conv2d,
     pub(crate) min_proj: Conv2d,
     pub(crate) mix: Conv2d,
-    pub(crate) pool: MaxPool2d,
     pub(crate) residual: bool,
 }
 
@@ -305,10 +305,6 @@ impl InceptionBlock {
             max_proj: conv(cin, h, 1, 1, device),
             min_proj: conv(cin, h, 1, 1, device),
             mix: conv(4 * b + 2 * h, cout, 1, 1, device),
-            pool: MaxPool2dConfig::new([3, 3])
-                .with_strides([1, 1])
-                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
-                .init(),
             residual: cin == cout,
         }
     }
@@ -320,14 +316,14 @@ impl InceptionBlock {
 
     /// `x`: [N, cin, H, W] → [N, cout, H, W].
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let one = self.one.forward(x.clone()); // [N, b, H, W]
+        let one = conv1x1(&self.one, x.clone()); // [N, b, H, W]
         let three = self.three.forward(x.clone()); // [N, b, H, W]
         let dilated = self.dilated.forward(x.clone()); // [N, b, H, W]
         let prong = self.prong_v.forward(relu(self.prong_h.forward(x.clone()))); // [N, b, H, W]
-        let max = self.max_proj.forward(self.pool.forward(x.clone())); // [N, b/2, H, W]
-        let min = self.min_proj.forward(-self.pool.forward(-x.clone())); // [N, b/2, H, W]
+        let max = conv1x1(&self.max_proj, max3x3(x.clone())); // [N, b/2, H, W], 3×3 max-pool
+        let min = conv1x1(&self.min_proj, min3x3(x.clone())); // [N, b/2, H, W], 3×3 min-pool
         let cat = relu(Tensor::cat(vec![one, three, dilated, prong, max, min], 1)); // [N, 4b + b, H, W]
-        let y = relu(self.mix.forward(cat)); // [N, cout, H, W]
+        let y = relu(conv1x1(&self.mix, cat)); // [N, cout, H, W]
         if self.residual {
             y + x
         } else {
@@ -411,7 +407,7 @@ impl DenoiserNet {
             }
             let skip = skips.pop().expect("one skip per decoder level"); // [N, c(l), H/2^l, W/2^l]
             let up = upsample2(y); // [N, c(l+1), H/2^l, W/2^l]
-            let fused = relu(dec.fuse.forward(Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
+            let fused = relu(conv1x1(&dec.fuse, Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
             y = relu(dec.refine.forward(fused)); // [N, c(l), H/2^l, W/2^l]
         }
         match (&self.kernel, kernel_inputs) {
@@ -420,7 +416,7 @@ impl DenoiserNet {
                 levels.reverse();
                 kernel.forward(noisy, &levels) // [N, 3, H, W]
             }
-            _ => self.output.forward(y), // [N, 3, H, W]
+            _ => conv1x1(&self.output, y), // [N, 3, H, W]
         }
     }
 }
