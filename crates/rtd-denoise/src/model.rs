@@ -11,7 +11,7 @@ use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
 use crate::kernel_output::KernelOutput;
-use crate::tensor_ops::{conv1x1, max3x3, min3x3, upsample2};
+use crate::tensor_ops::{conv1x1, upsample2};
 
 /// Renumbers a module's parameters 1, 2, 3, … in traversal order. burn draws a random id for
 /// every parameter, and the ids are written into every record: two identical training runs
@@ -280,6 +280,7 @@ pub struct InceptionBlock {
     pub(crate) max_proj: Conv2d,
     pub(crate) min_proj: Conv2d,
     pub(crate) mix: Conv2d,
+    pub(crate) pool: MaxPool2d,
     pub(crate) residual: bool,
 }
 
@@ -305,6 +306,10 @@ impl InceptionBlock {
             max_proj: conv(cin, h, 1, 1, device),
             min_proj: conv(cin, h, 1, 1, device),
             mix: conv(4 * b + 2 * h, cout, 1, 1, device),
+            pool: MaxPool2dConfig::new([3, 3])
+                .with_strides([1, 1])
+                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+                .init(),
             residual: cin == cout,
         }
     }
@@ -320,8 +325,8 @@ impl InceptionBlock {
         let three = self.three.forward(x.clone()); // [N, b, H, W]
         let dilated = self.dilated.forward(x.clone()); // [N, b, H, W]
         let prong = self.prong_v.forward(relu(self.prong_h.forward(x.clone()))); // [N, b, H, W]
-        let max = conv1x1(&self.max_proj, max3x3(x.clone())); // [N, b/2, H, W], 3×3 max-pool
-        let min = conv1x1(&self.min_proj, min3x3(x.clone())); // [N, b/2, H, W], 3×3 min-pool
+        let max = conv1x1(&self.max_proj, self.pool.forward(x.clone())); // [N, b/2, H, W]
+        let min = conv1x1(&self.min_proj, -self.pool.forward(-x.clone())); // [N, b/2, H, W]
         let cat = relu(Tensor::cat(vec![one, three, dilated, prong, max, min], 1)); // [N, 4b + b, H, W]
         let y = relu(conv1x1(&self.mix, cat)); // [N, cout, H, W]
         if self.residual {
