@@ -227,6 +227,7 @@ fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
 /// Below −87 (where e^x nears f32's smallest normal) it returns 0.
 #[inline(always)]
 fn exp_nonpositive(x: f32) -> f32 {
+    debug_assert!(!(x > 0.0), "exp_nonpositive({x})");
     if x < -87.0 {
         return 0.0;
     }
