@@ -175,11 +175,20 @@ fn box_down2_planar(img: &[f32], w: usize, h: usize) -> Vec<f32> {
 fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
     let (w, h) = (logits.w, logits.h);
     let (k2, r) = (KERNEL_SIZE * KERNEL_SIZE, KERNEL_SIZE / 2);
+    // Each source row once, edge-replicated by r pixels on both sides, so a tap's shifted row
+    // is a plain slice.
+    let pw = w + 2 * r;
+    let mut padded = vec![0.0f32; 3 * h * pw];
+    for (src, dst) in img[..3 * w * h].chunks_exact(w).zip(padded.chunks_exact_mut(pw)) {
+        dst[..r].fill(src[0]);
+        dst[r..r + w].copy_from_slice(src);
+        dst[r + w..].fill(src[w - 1]);
+    }
     // Rows of three channels each, (y, c, x), transposed to planes below.
     let mut rows = vec![0.0; 3 * w * h];
     rows.par_chunks_mut(3 * w).enumerate().for_each_init(
-        || (vec![0.0f32; k2 * w], vec![0.0f32; w], vec![0.0f32; w + 2 * r]),
-        |(taps, norm, padded), (y, dst)| {
+        || (vec![0.0f32; k2 * w], vec![0.0f32; w]),
+        |(taps, norm), (y, dst)| {
             // Softmax over the taps, per pixel: exp(logit − max) / Σ.
             let tap_row = |t: usize| &logits.data[(t * h + y) * w..][..w];
             norm.copy_from_slice(tap_row(0));
@@ -200,13 +209,10 @@ fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
                 out.fill(0.0);
                 for i in 0..KERNEL_SIZE {
                     let sy = (y + i).saturating_sub(r).min(h - 1);
-                    let src = &img[(c * h + sy) * w..][..w];
-                    padded[..r].fill(src[0]);
-                    padded[r..r + w].copy_from_slice(src);
-                    padded[r + w..].fill(src[w - 1]);
+                    let src = &padded[(c * h + sy) * pw..][..pw];
                     for j in 0..KERNEL_SIZE {
                         let e = &taps[(i * KERNEL_SIZE + j) * w..][..w];
-                        out.iter_mut().zip(e).zip(&padded[j..j + w]).for_each(|((o, &e), &v)| *o += e * v);
+                        out.iter_mut().zip(e).zip(&src[j..j + w]).for_each(|((o, &e), &v)| *o += e * v);
                     }
                 }
                 out.iter_mut().zip(norm.iter()).for_each(|(o, &n)| *o *= n);
