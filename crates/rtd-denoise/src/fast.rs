@@ -11,6 +11,7 @@ use rayon::prelude::*;
 
 use crate::column_winograd::ColumnWinogradWeights;
 use crate::direct::DirectWeights;
+use crate::feature_map::gather_shifted;
 pub use crate::feature_map::{Map, Rows, Scratch};
 use crate::model::{DenoiserNet, InceptionBlock};
 use crate::pooling::{add_upsampled_relu, downsample, pool3_max_min};
@@ -298,34 +299,6 @@ impl Conv {
                 });
             }
         }
-    }
-}
-
-/// Fills `dst` with pixels p0, p0 + 1, … of a w-wide plane, each read at offset (dx, dy) from
-/// itself, with zero where that falls outside the plane.
-fn gather_shifted(plane: &[f32], w: usize, p0: usize, dx: isize, dy: isize, dst: &mut [f32]) {
-    let h = (plane.len() / w) as isize;
-    let mut r = 0;
-    while r < dst.len() {
-        // One image row's run of the chunk: pixels (px.., py).
-        let (px, py) = ((p0 + r) % w, (p0 + r) / w);
-        let run = (w - px).min(dst.len() - r);
-        let seg = &mut dst[r..r + run];
-        let sy = py as isize + dy;
-        if sy < 0 || sy >= h {
-            seg.fill(0.0);
-        } else {
-            // Run positions i with 0 ≤ px + i + dx < w read the plane; the rest are zero.
-            let lo = (-(px as isize + dx)).clamp(0, run as isize) as usize;
-            let hi = (w as isize - px as isize - dx).clamp(lo as isize, run as isize) as usize;
-            seg[..lo].fill(0.0);
-            if hi > lo {
-                let src = (sy as usize * w + px + lo).wrapping_add_signed(dx);
-                seg[lo..hi].copy_from_slice(&plane[src..src + (hi - lo)]);
-            }
-            seg[hi..].fill(0.0);
-        }
-        r += run;
     }
 }
 

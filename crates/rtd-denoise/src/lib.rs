@@ -17,6 +17,7 @@ pub mod model;
 pub mod plane_encoder;
 pub mod planes;
 pub mod pooling;
+pub mod same_conv;
 mod tensor_ops;
 pub mod winograd;
 

@@ -11,6 +11,7 @@ use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
 use crate::kernel_output::KernelOutput;
+use crate::same_conv::same_conv;
 use crate::tensor_ops::{conv1x1, upsample2};
 
 /// Renumbers a module's parameters 1, 2, 3, … in traversal order. burn draws a random id for
@@ -322,9 +323,9 @@ impl InceptionBlock {
     /// `x`: [N, cin, H, W] → [N, cout, H, W].
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let one = conv1x1(&self.one, x.clone()); // [N, b, H, W]
-        let three = self.three.forward(x.clone()); // [N, b, H, W]
-        let dilated = self.dilated.forward(x.clone()); // [N, b, H, W]
-        let prong = self.prong_v.forward(relu(self.prong_h.forward(x.clone()))); // [N, b, H, W]
+        let three = same_conv(&self.three, x.clone()); // [N, b, H, W]
+        let dilated = same_conv(&self.dilated, x.clone()); // [N, b, H, W]
+        let prong = same_conv(&self.prong_v, relu(same_conv(&self.prong_h, x.clone()))); // [N, b, H, W]
         let max = conv1x1(&self.max_proj, self.pool.forward(x.clone())); // [N, b/2, H, W]
         let min = conv1x1(&self.min_proj, -self.pool.forward(-x.clone())); // [N, b/2, H, W]
         let cat = relu(Tensor::cat(vec![one, three, dilated, prong, max, min], 1)); // [N, 4b + b, H, W]
@@ -394,7 +395,7 @@ impl DenoiserNet {
         let mut skips = Vec::with_capacity(self.encoders.len());
         // Kernel heads read the noisy colour and every level's decoder output.
         let mut kernel_inputs = self.kernel.as_ref().map(|_| (x.clone().narrow(1, 0, 3), vec![])); // [N, 3, H, W]
-        let mut y = relu(self.stem.forward(x)); // [N, c0, H, W]
+        let mut y = relu(same_conv(&self.stem, x)); // [N, c0, H, W]
         for (l, enc) in self.encoders.iter().enumerate() {
             if l > 0 {
                 y = self.downsample.forward(y); // [N, c(l−1), H/2^l, W/2^l]
@@ -413,7 +414,7 @@ impl DenoiserNet {
             let skip = skips.pop().expect("one skip per decoder level"); // [N, c(l), H/2^l, W/2^l]
             let up = upsample2(y); // [N, c(l+1), H/2^l, W/2^l]
             let fused = relu(conv1x1(&dec.fuse, Tensor::cat(vec![up, skip], 1))); // [N, c(l), H/2^l, W/2^l]
-            y = relu(dec.refine.forward(fused)); // [N, c(l), H/2^l, W/2^l]
+            y = relu(same_conv(&dec.refine, fused)); // [N, c(l), H/2^l, W/2^l]
         }
         match (&self.kernel, kernel_inputs) {
             (Some(kernel), Some((noisy, mut levels))) => {
