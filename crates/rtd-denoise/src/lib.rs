@@ -8,6 +8,7 @@
 pub mod column_winograd;
 pub mod direct;
 pub mod encode;
+pub mod extreme_pool;
 pub mod fast;
 pub mod feature_map;
 pub mod filter;

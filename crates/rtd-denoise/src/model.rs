@@ -4,12 +4,12 @@
 use burn::config::Config;
 use burn::module::{Module, ModuleMapper, Param, ParamId};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
-use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
 use burn::nn::PaddingConfig2d;
 use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::encode::Encoding;
+use crate::extreme_pool::{extreme_pool, Window};
 use crate::kernel_output::KernelOutput;
 use crate::same_conv::same_conv;
 use crate::tensor_ops::{conv1x1, upsample2};
@@ -178,15 +178,7 @@ impl DenoiserConfig {
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
         let kernel = self.predicts_kernels().then(|| KernelOutput::new(c, device));
-        let net = DenoiserNet {
-            kernel,
-            stem,
-            encoders,
-            bottleneck,
-            decoders,
-            output,
-            downsample: MaxPool2dConfig::new([2, 2]).init(),
-        };
+        let net = DenoiserNet { kernel, stem, encoders, bottleneck, decoders, output };
         net.map(&mut NumberedParams(0))
     }
 
@@ -281,7 +273,6 @@ pub struct InceptionBlock {
     pub(crate) max_proj: Conv2d,
     pub(crate) min_proj: Conv2d,
     pub(crate) mix: Conv2d,
-    pub(crate) pool: MaxPool2d,
     pub(crate) residual: bool,
 }
 
@@ -307,10 +298,6 @@ impl InceptionBlock {
             max_proj: conv(cin, h, 1, 1, device),
             min_proj: conv(cin, h, 1, 1, device),
             mix: conv(4 * b + 2 * h, cout, 1, 1, device),
-            pool: MaxPool2dConfig::new([3, 3])
-                .with_strides([1, 1])
-                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
-                .init(),
             residual: cin == cout,
         }
     }
@@ -326,8 +313,8 @@ impl InceptionBlock {
         let three = same_conv(&self.three, x.clone()); // [N, b, H, W]
         let dilated = same_conv(&self.dilated, x.clone()); // [N, b, H, W]
         let prong = same_conv(&self.prong_v, relu(same_conv(&self.prong_h, x.clone()))); // [N, b, H, W]
-        let max = conv1x1(&self.max_proj, self.pool.forward(x.clone())); // [N, b/2, H, W]
-        let min = conv1x1(&self.min_proj, -self.pool.forward(-x.clone())); // [N, b/2, H, W]
+        let max = conv1x1(&self.max_proj, extreme_pool(x.clone(), Window::Three, true)); // [N, b/2, H, W]
+        let min = conv1x1(&self.min_proj, extreme_pool(x.clone(), Window::Three, false)); // [N, b/2, H, W]
         let cat = relu(Tensor::cat(vec![one, three, dilated, prong, max, min], 1)); // [N, 4b + b, H, W]
         let y = relu(conv1x1(&self.mix, cat)); // [N, cout, H, W]
         if self.residual {
@@ -348,7 +335,6 @@ pub struct DenoiserNet {
     pub(crate) bottleneck: Vec<InceptionBlock>,
     pub(crate) decoders: Vec<Decoder>,
     pub(crate) output: Conv2d,
-    pub(crate) downsample: MaxPool2d,
     /// The kernel-predicting heads, which replace `output` when present.
     pub(crate) kernel: Option<KernelOutput>,
 }
@@ -398,7 +384,7 @@ impl DenoiserNet {
         let mut y = relu(same_conv(&self.stem, x)); // [N, c0, H, W]
         for (l, enc) in self.encoders.iter().enumerate() {
             if l > 0 {
-                y = self.downsample.forward(y); // [N, c(l−1), H/2^l, W/2^l]
+                y = extreme_pool(y, Window::Two, true); // [N, c(l−1), H/2^l, W/2^l]
             }
             y = enc.forward(y); // [N, c(l), H/2^l, W/2^l]
             skips.push(y.clone());
