@@ -26,6 +26,8 @@ use burn::backend::{backend_extension, Autodiff, Backend, Dispatch, Flex};
 use burn::tensor::{Tensor, TensorData};
 use rayon::prelude::*;
 
+use crate::tensor_ops::flex_values;
+
 /// Which pooling window: 3×3 at stride 1 over the valid neighbours, or 2×2 at stride 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Window {
@@ -52,13 +54,6 @@ struct Pooled {
 
 fn dims4(t: &FlexTensor) -> [usize; 4] {
     t.shape().dims()
-}
-
-fn contiguous(t: &FlexTensor) -> Vec<f32> {
-    match t.as_slice::<f32>() {
-        Some(s) if t.is_contiguous() => s.to_vec(),
-        _ => t.to_contiguous().as_slice::<f32>().expect("f32 values").to_vec(),
-    }
 }
 
 /// Pools every plane of x: the max or the min of each window, and its argument.
@@ -170,7 +165,7 @@ fn window(two: bool) -> Window {
 
 impl ExtremePoolOps for Flex {
     fn extreme_pool(x: FlexTensor, two: bool, max: bool) -> FlexTensor {
-        let pooled = pool(&contiguous(&x), dims4(&x), window(two), max);
+        let pooled = pool(&flex_values(&x), dims4(&x), window(two), max);
         FlexTensor::from_data(TensorData::new(pooled.values, pooled.dims))
     }
 }
@@ -195,7 +190,7 @@ impl Backward<Flex, 1> for ExtremePoolBackward {
         let grad: FlexTensor = grads.consume::<Flex>(&ops.node);
         if let Some(node) = node_x {
             let state = ops.state;
-            let dx = scatter(&contiguous(&grad), &state.argument, state.input, state.output);
+            let dx = scatter(&flex_values(&grad), &state.argument, state.input, state.output);
             grads.register::<Flex>(node.id, FlexTensor::from_data(TensorData::new(dx, state.input)));
         }
     }
@@ -207,7 +202,7 @@ impl<C: CheckpointStrategy> ExtremePoolOps for Autodiff<Flex, C> {
             OpsKind::Tracked(prep) => {
                 let inner = x.into_primitive();
                 let input = dims4(&inner);
-                let pooled = pool(&contiguous(&inner), input, window(two), max);
+                let pooled = pool(&flex_values(&inner), input, window(two), max);
                 let state = PoolState { argument: Arc::new(pooled.argument), input, output: pooled.dims };
                 prep.finish(state, FlexTensor::from_data(TensorData::new(pooled.values, pooled.dims)))
             }

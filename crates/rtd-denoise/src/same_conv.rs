@@ -33,6 +33,7 @@ use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
 
 use crate::feature_map::gather_shifted;
+use crate::tensor_ops::flex_values;
 
 /// Pixels per work item: each item fills its own im2col buffer and runs one `gemm`.
 const CHUNK: usize = 1024;
@@ -84,13 +85,9 @@ pub trait SameConvKernels: Backend {
     ) -> FloatTensor<Self>;
 }
 
-/// A contiguous f32 copy (or view) of a flex tensor's values and its dimensions.
+/// A flex tensor's values (borrowed where they are contiguous) and its dimensions.
 fn values(t: &FlexTensor) -> (std::borrow::Cow<'_, [f32]>, Vec<usize>) {
-    let dims = t.shape().to_vec();
-    match t.as_slice::<f32>() {
-        Some(s) if t.is_contiguous() => (std::borrow::Cow::Borrowed(s), dims),
-        _ => (std::borrow::Cow::Owned(t.to_contiguous().as_slice::<f32>().expect("f32 values").to_vec()), dims),
-    }
+    (flex_values(t), t.shape().to_vec())
 }
 
 fn flex(data: Vec<f32>, dims: [usize; 4]) -> FlexTensor {

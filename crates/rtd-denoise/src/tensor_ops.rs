@@ -3,6 +3,9 @@
 //! (measured in models/README.md, "Training's own speed"); the tests hold its values and
 //! gradients to burn's module.
 
+use std::borrow::Cow;
+
+use burn::backend::flex::FlexTensor;
 use burn::nn::conv::Conv2d;
 use burn::nn::PaddingConfig2d;
 use burn::tensor::Tensor;
@@ -25,6 +28,15 @@ pub(crate) fn conv1x1(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
         y = y + bias.val().reshape([1, cout, 1]);
     }
     y.reshape([n, cout, h, w])
+}
+
+/// A flex tensor's f32 values in order: borrowed where they already are, else a contiguous copy
+/// (for the hand-written training operations, `same_conv` and `extreme_pool`).
+pub(crate) fn flex_values(t: &FlexTensor) -> Cow<'_, [f32]> {
+    match t.as_slice::<f32>() {
+        Some(s) if t.is_contiguous() => Cow::Borrowed(s),
+        _ => Cow::Owned(t.to_contiguous().as_slice::<f32>().expect("f32 values").to_vec()),
+    }
 }
 
 /// Nearest-neighbour 2× upsampling: [N, C, H, W] → [N, C, 2H, 2W].
