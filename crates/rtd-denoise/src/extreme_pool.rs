@@ -10,8 +10,8 @@
 //! Ties (equal inputs in one window) send the gradient to one of them, the first in the order
 //! centre, up, down, then centre, left, right (for the 2×2 window: row-major); burn's module
 //! breaks ties in its own order, so the tests compare on inputs without ties. The input of
-//! every pool in the network is a ReLU output, whose ties are mostly zeros that the ReLU's own
-//! backward discards.
+//! every pool in the network is non-negative (a ReLU output, or one plus a residual ReLU
+//! output), and its ties are mostly zeros, whose gradient the ReLUs' own backward discards.
 
 use std::sync::Arc;
 
@@ -52,6 +52,7 @@ struct Pooled {
     dims: [usize; 4],
 }
 
+/// A 4-d flex tensor's sizes.
 fn dims4(t: &FlexTensor) -> [usize; 4] {
     t.shape().dims()
 }
@@ -64,6 +65,9 @@ fn pool(x: &[f32], [n, c, h, w]: [usize; 4], window: Window, max: bool) -> Poole
     };
     let mut values = vec![0.0f32; n * c * oh * ow];
     let mut argument = vec![0u32; values.len()];
+    if values.is_empty() {
+        return Pooled { values, argument, dims: [n, c, oh, ow] };
+    }
     values.par_chunks_mut(oh * ow).zip(argument.par_chunks_mut(oh * ow)).enumerate().for_each(|(p, (v, a))| {
         let plane = &x[p * h * w..][..h * w];
         match (window, max) {
@@ -146,6 +150,9 @@ fn pool2_plane(
 fn scatter(grad: &[f32], argument: &[u32], input: [usize; 4], output: [usize; 4]) -> Vec<f32> {
     let (n_in, n_out) = (input[2] * input[3], output[2] * output[3]);
     let mut dx = vec![0.0f32; input.iter().product()];
+    if dx.is_empty() || n_out == 0 {
+        return dx;
+    }
     dx.par_chunks_mut(n_in).enumerate().for_each(|(p, plane)| {
         let (g, a) = (&grad[p * n_out..][..n_out], &argument[p * n_out..][..n_out]);
         for (g, &a) in g.iter().zip(a) {
@@ -155,6 +162,7 @@ fn scatter(grad: &[f32], argument: &[u32], input: [usize; 4], output: [usize; 4]
     dx
 }
 
+/// The window the operation's flag names.
 fn window(two: bool) -> Window {
     if two {
         Window::Two
@@ -212,8 +220,8 @@ impl<C: CheckpointStrategy> ExtremePoolOps for Autodiff<Flex, C> {
 }
 
 /// The max (`max`) or min of each `window` of x [N, C, H, W], as [`ExtremePoolOps::extreme_pool`]:
-/// what the network's `MaxPool2d` modules (3×3 stride 1 padding 1, 2×2 stride 2) compute, and
-/// −maxpool(−x) for the min.
+/// what burn's `MaxPool2d` computes with a 3×3 window, stride 1 and padding 1 (or a 2×2 window
+/// at stride 2), and −maxpool(−x) for the min.
 pub(crate) fn extreme_pool(x: Tensor<4>, window: Window, max: bool) -> Tensor<4> {
     let out = <Dispatch as ExtremePoolOps>::extreme_pool(x.into_dispatch(), window == Window::Two, max);
     Tensor::from_dispatch(out)
@@ -222,12 +230,19 @@ pub(crate) fn extreme_pool(x: Tensor<4>, window: Window, max: bool) -> Tensor<4>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use burn::nn::pool::MaxPool2dConfig;
+    use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
     use burn::nn::PaddingConfig2d;
     use burn::tensor::Device;
 
     fn to_vec(t: Tensor<4>) -> Vec<f32> {
         t.into_data().try_to_vec().unwrap()
+    }
+
+    /// The network's pools as burn modules: 3×3 stride 1 padding 1, and 2×2 stride 2.
+    fn modules() -> (MaxPool2d, MaxPool2d) {
+        let three =
+            MaxPool2dConfig::new([3, 3]).with_strides([1, 1]).with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1));
+        (three.init(), MaxPool2dConfig::new([2, 2]).init())
     }
 
     /// Distinct values (a permutation of 0..n, scaled): no window has a tie.
@@ -242,11 +257,7 @@ mod tests {
     #[test]
     fn extreme_pools_equal_burns_modules_forward_and_backward() {
         let device = Device::flex().autodiff();
-        let three = MaxPool2dConfig::new([3, 3])
-            .with_strides([1, 1])
-            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
-            .init();
-        let two = MaxPool2dConfig::new([2, 2]).with_strides([2, 2]).init();
+        let (three, two) = modules();
         for (dims, window) in
             [([2, 3, 7, 5], Window::Three), ([1, 2, 1, 4], Window::Three), ([2, 3, 6, 8], Window::Two)]
         {
@@ -271,6 +282,50 @@ mod tests {
         }
     }
 
+    /// Ties go where the module's documentation says: for the 3×3 window the centre, then up,
+    /// down, then the centre column, left, right; for the 2×2 window row-major first.
+    #[test]
+    fn ties_go_in_the_documented_order() {
+        let device = Device::flex().autodiff();
+        // A 3×3 plane, max 5 at (0, 0), (0, 2) and (2, 1); the centre output's window holds all.
+        let plane = [5.0f32, 1.0, 5.0, 0.0, 2.0, 0.0, 1.0, 5.0, 1.0];
+        let x = Tensor::<4>::from_data(TensorData::new(plane.to_vec(), [1, 1, 3, 3]), &device).require_grad();
+        let y = extreme_pool(x.clone(), Window::Three, true);
+        // The centre output's gradient alone. Each column's vertical max comes first (the centre
+        // column's is 5 at (2, 1)); a side column replaces it only when strictly larger.
+        let mask =
+            Tensor::<4>::from_data(TensorData::new(vec![0., 0., 0., 0., 1., 0., 0., 0., 0.], [1, 1, 3, 3]), &device);
+        let grads = (y * mask).sum().backward();
+        assert_eq!(to_vec(x.grad(&grads).unwrap()), [0., 0., 0., 0., 0., 0., 0., 1., 0.]);
+        // The min over the same window: 0 at (1, 0) and (1, 2), in the side columns; left first.
+        let y = extreme_pool(x.clone(), Window::Three, false);
+        let mask =
+            Tensor::<4>::from_data(TensorData::new(vec![0., 0., 0., 0., 1., 0., 0., 0., 0.], [1, 1, 3, 3]), &device);
+        let grads = (y * mask).sum().backward();
+        assert_eq!(to_vec(x.grad(&grads).unwrap()), [0., 0., 0., 1., 0., 0., 0., 0., 0.]);
+        // 2×2: all equal, row-major first.
+        let x = Tensor::<4>::from_data(TensorData::new(vec![3.0f32; 4], [1, 1, 2, 2]), &device).require_grad();
+        let grads = extreme_pool(x.clone(), Window::Two, false).sum().backward();
+        assert_eq!(to_vec(x.grad(&grads).unwrap()), [1., 0., 0., 0.]);
+    }
+
+    /// A one-pixel-wide plane, odd sizes for the 2×2 window (the last row and column left out,
+    /// as burn's module does) and an empty output all work.
+    #[test]
+    fn edge_sizes_match_the_module() {
+        let device = Device::flex().autodiff();
+        let (three, two) = modules();
+        let x = distinct([1, 2, 5, 1], &device);
+        assert_eq!(to_vec(extreme_pool(x.clone(), Window::Three, true)), to_vec(three.forward(x)));
+        let x = distinct([2, 1, 5, 7], &device);
+        assert_eq!(to_vec(extreme_pool(x.clone(), Window::Two, true)), to_vec(two.forward(x)));
+        let x = distinct([1, 1, 1, 4], &device).require_grad();
+        let y = extreme_pool(x.clone(), Window::Two, true);
+        assert_eq!(y.dims(), [1, 1, 0, 2]);
+        let grads = (y.sum() + x.clone().sum()).backward();
+        assert_eq!(to_vec(x.grad(&grads).unwrap()), [1.0; 4]);
+    }
+
     /// With ties (a constant plane), each output's gradient still lands once, on an input that
     /// holds the extreme, so the gradient's sum is kept.
     #[test]
@@ -289,7 +344,7 @@ mod tests {
     fn extreme_pool_runs_on_plain_flex_tensors() {
         let device = Device::flex();
         let x = distinct([1, 2, 4, 6], &device);
-        let pool = MaxPool2dConfig::new([2, 2]).with_strides([2, 2]).init();
+        let (_, pool) = modules();
         assert_eq!(to_vec(extreme_pool(x.clone(), Window::Two, true)), to_vec(pool.forward(x)));
     }
 }

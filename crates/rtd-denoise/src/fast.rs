@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::column_winograd::ColumnWinogradWeights;
 use crate::direct::DirectWeights;
-use crate::feature_map::gather_shifted;
+use crate::feature_map::{gather_shifted, SendPtr, IM2COL_CHUNK};
 pub use crate::feature_map::{Map, Rows, Scratch};
 use crate::model::{DenoiserNet, InceptionBlock};
 use crate::pooling::{add_upsampled_relu, downsample, pool3_max_min};
@@ -72,18 +72,6 @@ thread_local! {
     static BAND_MAPS: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
     /// Each worker's im2col buffer, reused across chunks and layers.
     static COL: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
-/// Pixels per work item: each item runs im2col and one gemm on its own buffer.
-const CHUNK: usize = 1024;
-
-struct SendPtr(*mut f32);
-unsafe impl Send for SendPtr {}
-unsafe impl Sync for SendPtr {}
-impl SendPtr {
-    fn get(&self) -> *mut f32 {
-        self.0
-    }
 }
 
 impl Conv {
@@ -212,9 +200,9 @@ impl Conv {
         let (ph, pw) = (((self.kh - 1) / 2 * self.dil) as isize, ((self.kw - 1) / 2 * self.dil) as isize);
         let n = w * h;
         let out = SendPtr(dst.data.as_mut_ptr());
-        (0..n.div_ceil(CHUNK)).into_par_iter().for_each(|chunk| {
-            let p0 = chunk * CHUNK;
-            let rows = CHUNK.min(n - p0);
+        (0..n.div_ceil(IM2COL_CHUNK)).into_par_iter().for_each(|chunk| {
+            let p0 = chunk * IM2COL_CHUNK;
+            let rows = IM2COL_CHUNK.min(n - p0);
             COL.with(|cell| {
                 let mut col = cell.borrow_mut();
                 let (lhs, lhs_cs) = if self.kh == 1 && self.kw == 1 {

@@ -52,9 +52,6 @@ pub struct Rows {
     pub at: usize,
 }
 
-/// The kernels' tests' reference: act(conv(x) + bias) straight from the definition, summed in
-/// f64, for weights as rows (ky, kx, ci), columns co (the gemm layout) and zero padding: `cout`
-/// (= `bias.len()`) planes of x's size.
 /// Fills `dst` with pixels p0, p0 + 1, … of a w-wide plane, each read at offset (dx, dy) from
 /// itself, with zero where that falls outside the plane.
 pub(crate) fn gather_shifted(plane: &[f32], w: usize, p0: usize, dx: isize, dy: isize, dst: &mut [f32]) {
@@ -83,6 +80,24 @@ pub(crate) fn gather_shifted(plane: &[f32], w: usize, p0: usize, dx: isize, dy: 
     }
 }
 
+/// Pixels per im2col work item: each item fills its own column buffer and runs one `gemm`
+/// (the fast path's convolutions and training's, [`crate::same_conv`]).
+pub(crate) const IM2COL_CHUNK: usize = 1024;
+
+/// A raw pointer that parallel work items share, each writing only its own part of the buffer.
+pub(crate) struct SendPtr(pub(crate) *mut f32);
+unsafe impl Send for SendPtr {}
+unsafe impl Sync for SendPtr {}
+impl SendPtr {
+    /// The pointer (a method, so closures capture the whole `Sync` wrapper, not its field).
+    pub(crate) fn get(&self) -> *mut f32 {
+        self.0
+    }
+}
+
+/// The kernels' tests' reference: act(conv(x) + bias) straight from the definition, summed in
+/// f64, for weights as rows (ky, kx, ci), columns co (the gemm layout) and zero padding: `cout`
+/// (= `bias.len()`) planes of x's size.
 #[cfg(test)]
 pub(crate) fn convolution_by_definition(
     x: &Map,

@@ -8,7 +8,7 @@
 pub mod column_winograd;
 pub mod direct;
 pub mod encode;
-pub mod extreme_pool;
+mod extreme_pool;
 pub mod fast;
 pub mod feature_map;
 pub mod filter;
@@ -18,7 +18,7 @@ pub mod model;
 pub mod plane_encoder;
 pub mod planes;
 pub mod pooling;
-pub mod same_conv;
+mod same_conv;
 mod tensor_ops;
 pub mod winograd;
 

@@ -233,6 +233,26 @@ fn backend_rng() -> std::sync::MutexGuard<'static, ()> {
     BACKEND_RNG.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// Keeps each parameter's id and forces its value, which burn draws lazily at first use.
+#[cfg(test)]
+struct DrawNow;
+
+#[cfg(test)]
+impl ModuleMapper for DrawNow {
+    fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        let (id, value, mapper) = param.consume();
+        Param::from_mapped_value(id, value, mapper)
+    }
+}
+
+/// A test's layer with its weights drawn now, under [`backend_rng`], so they never interleave
+/// with a seeded network's draws on another test thread.
+#[cfg(test)]
+pub(crate) fn drawn_now<M: Module>(make: impl FnOnce() -> M) -> M {
+    let _held = backend_rng();
+    make().map(&mut DrawNow)
+}
+
 /// The most resolution levels a network may have.
 pub const MAX_LEVELS: usize = 5;
 /// The most channels a level may have.
@@ -367,8 +387,9 @@ impl DenoiserNet {
     /// `seed` in place of its direct output (a network that has them keeps them): how a
     /// trained direct-prediction model seeds a kernel-predicting one.
     pub fn with_kernel_output(mut self, config: &DenoiserConfig, device: &Device, seed: u64) -> Self {
+        // burn draws parameters lazily, so the lock is held until `map` has forced them.
+        let _held = backend_rng();
         if self.kernel.is_none() {
-            let _held = backend_rng();
             device.seed(seed);
             self.kernel = Some(KernelOutput::new(&config.channels, device));
         }

@@ -32,11 +32,8 @@ use burn::tensor::{Shape, Tensor, TensorData};
 use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
 
-use crate::feature_map::gather_shifted;
+use crate::feature_map::{gather_shifted, SendPtr, IM2COL_CHUNK};
 use crate::tensor_ops::flex_values;
-
-/// Pixels per work item: each item fills its own im2col buffer and runs one `gemm`.
-const CHUNK: usize = 1024;
 
 /// A convolution's geometry: kernel height and width, and the dilation of both axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,65 +69,65 @@ pub trait SameConvOps: Backend {
     ) -> FloatTensor<Self>;
 }
 
-/// The kernels the operation and its backward run, on flex's raw buffers.
-pub trait SameConvKernels: Backend {
-    /// The gradient with respect to x of [`SameConvOps::same_conv`], given the output's.
-    fn same_conv_input_grad(grad: FloatTensor<Self>, weight: FloatTensor<Self>, dilation: usize) -> FloatTensor<Self>;
-    /// The gradient with respect to the weights, [Cout, Cin, kh, kw].
-    fn same_conv_weight_grad(
-        x: FloatTensor<Self>,
-        grad: FloatTensor<Self>,
-        kernel: [usize; 2],
-        dilation: usize,
-    ) -> FloatTensor<Self>;
-}
-
 /// A flex tensor's values (borrowed where they are contiguous) and its dimensions.
-fn values(t: &FlexTensor) -> (std::borrow::Cow<'_, [f32]>, Vec<usize>) {
-    (flex_values(t), t.shape().to_vec())
+fn values(t: &FlexTensor) -> (std::borrow::Cow<'_, [f32]>, [usize; 4]) {
+    (flex_values(t), t.shape().dims())
 }
 
+/// A flex tensor of `dims` holding `data`.
 fn flex(data: Vec<f32>, dims: [usize; 4]) -> FlexTensor {
     FlexTensor::from_data(TensorData::new(data, dims))
 }
 
+/// Checks that x [N, Cin, H, W] and weight [Cout, Cin, kh, kw] (odd kh and kw) fit together,
+/// and a bias or an output gradient with them: the raw kernels index by these sizes.
+fn check(x: [usize; 4], weight: [usize; 4], cout_of: usize, what: &str) {
+    let [_, cin, _, _] = x;
+    let [cout, wcin, kh, kw] = weight;
+    assert!(
+        cin == wcin && cout == cout_of && kh % 2 == 1 && kw % 2 == 1,
+        "same_conv: {what} does not fit x {x:?} and weight {weight:?} (odd kernels only)"
+    );
+}
+
 impl SameConvOps for Flex {
     fn same_conv(x: FlexTensor, weight: FlexTensor, bias: FlexTensor, dilation: usize) -> FlexTensor {
-        let ((xv, xd), (wv, wd), (bv, _)) = (values(&x), values(&weight), values(&bias));
-        let geometry = Geometry { kh: wd[2], kw: wd[3], dilation };
-        let (n, cin, h, w, cout) = (xd[0], xd[1], xd[2], xd[3], wd[0]);
-        flex(correlate(&xv, [n, cin, h, w], &wv, cout, geometry, &bv), [n, cout, h, w])
+        let ((xv, xd), (wv, wd), bv) = (values(&x), values(&weight), flex_values(&bias));
+        check(xd, wd, bv.len(), "the bias");
+        let ([n, _, h, w], [cout, _, kh, kw]) = (xd, wd);
+        flex(correlate(&xv, xd, &wv, cout, Geometry { kh, kw, dilation }, Some(&bv)), [n, cout, h, w])
     }
 }
 
-impl SameConvKernels for Flex {
-    fn same_conv_input_grad(grad: FlexTensor, weight: FlexTensor, dilation: usize) -> FlexTensor {
-        let ((gv, gd), (wv, wd)) = (values(&grad), values(&weight));
-        let [cout, cin, kh, kw] = [wd[0], wd[1], wd[2], wd[3]];
-        // W'[ci][co][ky][kx] = W[co][ci][kh-1-ky][kw-1-kx]: the flipped, channel-swapped kernel.
-        let mut flipped = vec![0.0; wv.len()];
-        for co in 0..cout {
-            for ci in 0..cin {
-                for ky in 0..kh {
-                    for kx in 0..kw {
-                        flipped[((ci * cout + co) * kh + ky) * kw + kx] =
-                            wv[((co * cin + ci) * kh + (kh - 1 - ky)) * kw + (kw - 1 - kx)];
-                    }
+/// ∂x of [`SameConvOps::same_conv`] from the output's gradient: the same correlation of the
+/// gradient with the kernel flipped and its channel axes swapped.
+fn input_grad(x_dims: [usize; 4], grad: &FlexTensor, weight: &FlexTensor, dilation: usize) -> FlexTensor {
+    let ((gv, gd), (wv, wd)) = (values(grad), values(weight));
+    check(x_dims, wd, gd[1], "the output gradient");
+    assert_eq!([gd[0], gd[2], gd[3]], [x_dims[0], x_dims[2], x_dims[3]], "same_conv: gradient and x differ in size");
+    let [cout, cin, kh, kw] = wd;
+    // W'[ci][co][ky][kx] = W[co][ci][kh-1-ky][kw-1-kx]: the flipped, channel-swapped kernel.
+    let mut flipped = vec![0.0; wv.len()];
+    for co in 0..cout {
+        for ci in 0..cin {
+            for ky in 0..kh {
+                for kx in 0..kw {
+                    flipped[((ci * cout + co) * kh + ky) * kw + kx] =
+                        wv[((co * cin + ci) * kh + (kh - 1 - ky)) * kw + (kw - 1 - kx)];
                 }
             }
         }
-        let (n, h, w) = (gd[0], gd[2], gd[3]);
-        let geometry = Geometry { kh, kw, dilation };
-        flex(correlate(&gv, [n, cout, h, w], &flipped, cin, geometry, &vec![0.0; cin]), [n, cin, h, w])
     }
+    flex(correlate(&gv, gd, &flipped, cin, Geometry { kh, kw, dilation }, None), x_dims)
+}
 
-    fn same_conv_weight_grad(x: FlexTensor, grad: FlexTensor, kernel: [usize; 2], dilation: usize) -> FlexTensor {
-        let ((xv, xd), (gv, gd)) = (values(&x), values(&grad));
-        let geometry = Geometry { kh: kernel[0], kw: kernel[1], dilation };
-        let (n, cin, h, w, cout) = (xd[0], xd[1], xd[2], xd[3], gd[1]);
-        let gw = weight_grad(&xv, [n, cin, h, w], &gv, cout, geometry);
-        flex(gw, [cout, cin, kernel[0], kernel[1]])
-    }
+/// ∂W [Cout, Cin, kh, kw] of [`SameConvOps::same_conv`] from x and the output's gradient.
+fn weight_grad_of(x: &FlexTensor, grad: &FlexTensor, weight_dims: [usize; 4], dilation: usize) -> FlexTensor {
+    let ((xv, xd), (gv, gd)) = (values(x), values(grad));
+    check(xd, weight_dims, gd[1], "the output gradient");
+    assert_eq!([gd[0], gd[2], gd[3]], [xd[0], xd[2], xd[3]], "same_conv: gradient and x differ in size");
+    let [cout, _, kh, kw] = weight_dims;
+    flex(weight_grad(&xv, xd, &gv, cout, Geometry { kh, kw, dilation }), weight_dims)
 }
 
 /// The backward step: input, weight and bias gradients from the output's.
@@ -138,13 +135,16 @@ impl SameConvKernels for Flex {
 struct SameConvBackward;
 
 impl Backward<Flex, 3> for SameConvBackward {
-    /// The checkpointed x and weight, the kernel size and the dilation.
-    type State = (NodeId, NodeId, [usize; 2], usize);
+    /// The checkpointed x and weight, and the dilation.
+    type State = (NodeId, NodeId, usize);
 
     fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, checkpointer: &mut Checkpointer) {
         let [node_x, node_weight, node_bias] = ops.parents;
         let grad: FlexTensor = grads.consume::<Flex>(&ops.node);
-        let (x_state, weight_state, kernel, dilation) = ops.state;
+        let (x_state, weight_state, dilation) = ops.state;
+        // Both are retrieved whichever gradients are wanted, so the checkpointer ends empty.
+        let x: FlexTensor = checkpointer.retrieve_node_output(x_state);
+        let weight: FlexTensor = checkpointer.retrieve_node_output(weight_state);
         if let Some(node) = node_bias {
             // ∂b[co] = Σ over images and pixels of g[n][co][p].
             let [n, cout, h, w] = grad.shape().dims();
@@ -152,12 +152,10 @@ impl Backward<Flex, 3> for SameConvBackward {
             grads.register::<Flex>(node.id, Flex::float_reshape(Flex::float_sum_dim(g, 1), Shape::new([cout])));
         }
         if let Some(node) = node_weight {
-            let x: FlexTensor = checkpointer.retrieve_node_output(x_state);
-            grads.register::<Flex>(node.id, Flex::same_conv_weight_grad(x, grad.clone(), kernel, dilation));
+            grads.register::<Flex>(node.id, weight_grad_of(&x, &grad, weight.shape().dims(), dilation));
         }
         if let Some(node) = node_x {
-            let weight: FlexTensor = checkpointer.retrieve_node_output(weight_state);
-            grads.register::<Flex>(node.id, Flex::same_conv_input_grad(grad, weight, dilation));
+            grads.register::<Flex>(node.id, input_grad(x.shape().dims(), &grad, &weight, dilation));
         }
     }
 }
@@ -169,12 +167,11 @@ impl<C: CheckpointStrategy> SameConvOps for Autodiff<Flex, C> {
         bias: FloatTensor<Self>,
         dilation: usize,
     ) -> FloatTensor<Self> {
-        let [_, _, kh, kw] = weight.primitive().shape().dims();
         match SameConvBackward.prepare::<C>([x.node(), weight.node(), bias.node()]).compute_bound().stateful() {
             OpsKind::Tracked(mut prep) => {
                 let (x_state, weight_state) = (prep.checkpoint(&x), prep.checkpoint(&weight));
                 let y = Flex::same_conv(x.into_primitive(), weight.into_primitive(), bias.into_primitive(), dilation);
-                prep.finish((x_state, weight_state, [kh, kw], dilation), y)
+                prep.finish((x_state, weight_state, dilation), y)
             }
             OpsKind::UnTracked(prep) => prep.finish(Flex::same_conv(
                 x.into_primitive(),
@@ -207,19 +204,9 @@ pub(crate) fn same_conv(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     Tensor::from_dispatch(out)
 }
 
-/// A raw pointer shared by work items that write disjoint parts of one buffer.
-struct SharedOut(*mut f32);
-unsafe impl Send for SharedOut {}
-unsafe impl Sync for SharedOut {}
-impl SharedOut {
-    fn get(&self) -> *mut f32 {
-        self.0
-    }
-}
-
 /// The work items of an [N, C, H, W] map: (image, first pixel, pixel count).
 fn chunks(n: usize, hw: usize) -> Vec<(usize, usize, usize)> {
-    (0..n).flat_map(|i| (0..hw).step_by(CHUNK).map(move |p0| (i, p0, CHUNK.min(hw - p0)))).collect()
+    (0..n).flat_map(|i| (0..hw).step_by(IM2COL_CHUNK).map(move |p0| (i, p0, IM2COL_CHUNK.min(hw - p0)))).collect()
 }
 
 /// im2col of pixels p0.. (len of them) of image `image`: rows (ci, ky, kx), `len` columns.
@@ -244,21 +231,29 @@ fn im2col(
     }
 }
 
-/// y[n][co] = Σ over (ci, ky, kx) of weight[co][ci][ky][kx] · x[n][ci] shifted by the tap, + bias[co].
-fn correlate(x: &[f32], dims: [usize; 4], weight: &[f32], cout: usize, geometry: Geometry, bias: &[f32]) -> Vec<f32> {
+/// y[n][co] = Σ over (ci, ky, kx) of weight[co][ci][ky][kx] · x[n][ci] shifted by the tap, + bias[co]
+/// (none: + 0). The callers have checked that x, weight and bias fit `dims` and `cout`.
+fn correlate(
+    x: &[f32],
+    dims: [usize; 4],
+    weight: &[f32],
+    cout: usize,
+    geometry: Geometry,
+    bias: Option<&[f32]>,
+) -> Vec<f32> {
     let [n, cin, h, w] = dims;
     let (hw, k) = (h * w, cin * geometry.taps());
     let mut y = vec![0.0f32; n * cout * hw];
-    let out = SharedOut(y.as_mut_ptr());
+    let out = SendPtr(y.as_mut_ptr());
     chunks(n, hw).into_par_iter().for_each_init(Vec::new, |cols, item| {
         let (image, p0, len) = item;
         im2col(x, dims, geometry, item, cols);
         let dst = unsafe { out.get().add(image * cout * hw + p0) };
-        for (co, b) in bias.iter().enumerate() {
+        for (co, b) in bias.unwrap_or_default().iter().enumerate() {
             // Each item owns pixels p0..p0+len of every output plane of its image.
             unsafe { std::slice::from_raw_parts_mut(dst.add(co * hw), len) }.fill(*b);
         }
-        // dstᵀ [len × cout] += colsᵀ [len × k] · weightᵀ [k × cout]
+        // dstᵀ [len × cout] = (bias, if any) + colsᵀ [len × k] · weightᵀ [k × cout]
         unsafe {
             gemm(
                 len,
@@ -267,14 +262,14 @@ fn correlate(x: &[f32], dims: [usize; 4], weight: &[f32], cout: usize, geometry:
                 dst,
                 hw as isize,
                 1,
-                true,
+                bias.is_some(),
                 cols.as_ptr(),
                 len as isize,
                 1,
                 weight.as_ptr(),
                 k as isize,
                 1,
-                1.0,
+                if bias.is_some() { 1.0 } else { 0.0 },
                 1.0,
                 false,
                 false,
@@ -361,25 +356,32 @@ mod tests {
     #[test]
     fn same_conv_equals_the_convolution_module_forward_and_backward() {
         let device = Device::flex().autodiff();
-        for (cin, cout, k, d, hw) in [
-            (5, 7, [3, 3], 1, [37, 33]),
-            (4, 3, [3, 3], 2, [9, 11]),
-            (6, 2, [1, 5], 1, [8, 5]),
-            (2, 6, [5, 1], 1, [7, 6]),
+        // Every plane is larger than one work chunk (1024 px) and 33 px wide, so chunks start
+        // mid-row; in the last case x does not require a gradient (the stem's case).
+        for (cin, cout, k, d, hw, x_grad) in [
+            (5, 7, [3, 3], 1, [37, 33], true),
+            (4, 3, [3, 3], 2, [35, 33], true),
+            (6, 2, [1, 5], 1, [32, 33], true),
+            (2, 6, [5, 1], 1, [33, 33], true),
+            (3, 4, [3, 3], 4, [34, 33], false),
         ] {
             let (ph, pw) = ((k[0] - 1) / 2 * d, (k[1] - 1) / 2 * d);
-            let conv = Conv2dConfig::new([cin, cout], k)
-                .with_dilation([d, d])
-                .with_padding(PaddingConfig2d::Explicit(ph, pw, ph, pw))
-                .init(&device);
-            let x = input([2, cin, hw[0], hw[1]], 97, &device).require_grad();
+            let conv = crate::model::drawn_now(|| {
+                Conv2dConfig::new([cin, cout], k)
+                    .with_dilation([d, d])
+                    .with_padding(PaddingConfig2d::Explicit(ph, pw, ph, pw))
+                    .init(&device)
+            });
+            let x = input([2, cin, hw[0], hw[1]], 97, &device);
+            let x = if x_grad { x.require_grad() } else { x };
             // A weighted sum of the outputs, so every output's gradient differs.
             let weights = input([2, cout, hw[0], hw[1]], 13, &device);
             let run = |y: Tensor<4>| {
                 let grads = (y.clone() * weights.clone()).sum().backward();
                 let grad = |t: &Tensor<4>| to_vec(t.grad(&grads).expect("a gradient"));
                 let bias = conv.bias.as_ref().unwrap().val().grad(&grads).expect("a bias gradient");
-                (to_vec(y), grad(&x), grad(&conv.weight.val()), bias.into_data().try_to_vec::<f32>().unwrap())
+                let dx = if x_grad { grad(&x) } else { vec![] };
+                (to_vec(y), dx, grad(&conv.weight.val()), bias.into_data().try_to_vec::<f32>().unwrap())
             };
             let (a, b) = (run(same_conv(&conv, x.clone())), run(conv.forward(x.clone())));
             close(&a.0, &b.0);
@@ -393,7 +395,9 @@ mod tests {
     #[test]
     fn same_conv_runs_on_plain_flex_tensors() {
         let device = Device::flex();
-        let conv = Conv2dConfig::new([3, 4], [3, 3]).with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1)).init(&device);
+        let conv = crate::model::drawn_now(|| {
+            Conv2dConfig::new([3, 4], [3, 3]).with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1)).init(&device)
+        });
         let x = input([1, 3, 6, 5], 11, &device);
         close(&to_vec(same_conv(&conv, x.clone())), &to_vec(conv.forward(x)));
     }
@@ -403,7 +407,7 @@ mod tests {
     #[should_panic(expected = "same_conv needs")]
     fn same_conv_refuses_a_valid_padded_convolution() {
         let device = Device::flex();
-        let conv = Conv2dConfig::new([2, 2], [3, 3]).init(&device);
+        let conv = crate::model::drawn_now(|| Conv2dConfig::new([2, 2], [3, 3]).init(&device));
         same_conv(&conv, input([1, 2, 4, 4], 7, &device));
     }
 

@@ -68,7 +68,7 @@ mod tests {
     fn conv1x1_equals_the_convolution_module_forward_and_backward() {
         let device = Device::flex().autodiff();
         for bias in [true, false] {
-            let conv = Conv2dConfig::new([5, 7], [1, 1]).with_bias(bias).init(&device);
+            let conv = crate::model::drawn_now(|| Conv2dConfig::new([5, 7], [1, 1]).with_bias(bias).init(&device));
             let x = Tensor::<4>::from_data(input([2, 5, 6, 3], 97).into_data(), &device).require_grad();
             // A weighted sum of the outputs, so every output's gradient differs.
             let weights = Tensor::<4>::from_data(input([2, 7, 6, 3], 13).into_data(), &device);
@@ -96,7 +96,7 @@ mod tests {
     #[should_panic(expected = "conv1x1 needs")]
     fn conv1x1_refuses_a_strided_convolution() {
         let device = Device::flex();
-        let conv = Conv2dConfig::new([2, 2], [1, 1]).with_stride([2, 2]).init(&device);
+        let conv = crate::model::drawn_now(|| Conv2dConfig::new([2, 2], [1, 1]).with_stride([2, 2]).init(&device));
         conv1x1(&conv, input([1, 2, 4, 4], 7));
     }
 
