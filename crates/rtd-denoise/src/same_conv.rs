@@ -291,23 +291,25 @@ fn weight_grad(x: &[f32], dims: [usize; 4], g: &[f32], cout: usize, geometry: Ge
         .map_init(Vec::new, |cols, item| {
             let (image, p0, len) = item;
             im2col(x, dims, geometry, item, cols);
-            let mut part = vec![0.0f32; cout * k];
+            let mut part = vec![0.0f32; k * cout];
             let grad = g[image * cout * hw + p0..].as_ptr();
-            // partᵀ [k × cout] = cols [k × len] · gᵀ [len × cout]
+            // part [cout × k, stored k-major] = g [cout × len] · colsᵀ [len × k]. With the output
+            // channels as gemm's rows it packs only the narrow g; with the (k-long) im2col rows as
+            // its rows it would pack, transposing, the whole im2col matrix (twice the time).
             unsafe {
                 gemm(
-                    k,
                     cout,
+                    k,
                     len,
                     part.as_mut_ptr(),
-                    k as isize,
+                    cout as isize,
                     1,
                     false,
-                    cols.as_ptr(),
-                    1,
-                    len as isize,
                     grad,
+                    1,
                     hw as isize,
+                    cols.as_ptr(),
+                    len as isize,
                     1,
                     0.0,
                     1.0,
@@ -320,11 +322,12 @@ fn weight_grad(x: &[f32], dims: [usize; 4], g: &[f32], cout: usize, geometry: Ge
             part
         })
         .collect();
-    let mut sum = vec![0.0f32; cout * k];
+    let mut sum = vec![0.0f32; k * cout];
     for part in &partials {
         sum.iter_mut().zip(part).for_each(|(s, p)| *s += p);
     }
-    sum
+    // From [k][cout] to the weight's [cout][k].
+    (0..cout * k).map(|i| sum[(i % k) * cout + i / k]).collect()
 }
 
 #[cfg(test)]
@@ -357,13 +360,15 @@ mod tests {
     fn same_conv_equals_the_convolution_module_forward_and_backward() {
         let device = Device::flex().autodiff();
         // Every plane is larger than one work chunk (1024 px) and 33 px wide, so chunks start
-        // mid-row; in the last case x does not require a gradient (the stem's case).
+        // mid-row; in the fifth case x does not require a gradient (the stem's case); the last
+        // has more output channels than gemm's widest row block (16).
         for (cin, cout, k, d, hw, x_grad) in [
             (5, 7, [3, 3], 1, [37, 33], true),
             (4, 3, [3, 3], 2, [35, 33], true),
             (6, 2, [1, 5], 1, [32, 33], true),
             (2, 6, [5, 1], 1, [33, 33], true),
             (3, 4, [3, 3], 4, [34, 33], false),
+            (3, 17, [3, 3], 1, [33, 33], true),
         ] {
             let (ph, pw) = ((k[0] - 1) / 2 * d, (k[1] - 1) / 2 * d);
             let conv = crate::model::drawn_now(|| {
