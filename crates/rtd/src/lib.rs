@@ -11,6 +11,7 @@ pub mod bench_command;
 pub mod denoise_command;
 pub mod exit;
 pub mod guide_command;
+pub mod heap;
 pub mod output;
 pub mod progress;
 pub mod render_command;

@@ -66,6 +66,7 @@ pub fn datagen(args: &DatagenArgs) -> anyhow::Result<()> {
 /// then a summary.
 /// The library checks the options against the dataset before it writes anything.
 pub fn train(args: &TrainArgs) -> anyhow::Result<TrainState> {
+    crate::heap::keep_freed_blocks();
     let bar = TaskBar::new(args.quiet);
     let mut options = train_options(args)?;
     if args.quick {
