@@ -12,7 +12,8 @@ use burn::tensor::{Device, Tensor};
 use rayon::prelude::*;
 
 use crate::feature_map::Map;
-use crate::tensor_ops::{conv1x1, upsample2};
+use crate::tensor_ops::conv1x1;
+use crate::upsample::upsample2;
 
 /// The side of each predicted kernel.
 pub const KERNEL_SIZE: usize = 5;

@@ -20,6 +20,7 @@ pub mod planes;
 pub mod pooling;
 mod same_conv;
 mod tensor_ops;
+mod upsample;
 pub mod winograd;
 
 pub use encode::DenoiseInput;

@@ -12,7 +12,8 @@ use crate::encode::Encoding;
 use crate::extreme_pool::{extreme_pool, Window};
 use crate::kernel_output::KernelOutput;
 use crate::same_conv::same_conv;
-use crate::tensor_ops::{conv1x1, upsample2};
+use crate::tensor_ops::conv1x1;
+use crate::upsample::upsample2;
 
 /// Renumbers a module's parameters 1, 2, 3, … in traversal order. burn draws a random id for
 /// every parameter, and the ids are written into every record: two identical training runs

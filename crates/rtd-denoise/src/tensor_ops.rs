@@ -1,7 +1,8 @@
-//! Tensor operations the burn network is built from. `conv1x1` is a 1×1 convolution in the form
-//! burn's flex CPU backend differentiates fastest, so training spends less time in it
-//! (measured in models/README.md, "Training's own speed"); the tests hold its values and
-//! gradients to burn's module.
+//! Tensor operations the burn network is built from, beside its hand-written differentiable
+//! operations (`same_conv.rs`, `extreme_pool.rs`, `upsample.rs`). `conv1x1` is a 1×1
+//! convolution in the form burn's flex CPU backend differentiates fastest, so training spends
+//! less time in it (measured in models/README.md, "Training's own speed"); the tests hold its
+//! values and gradients to burn's module.
 
 use std::borrow::Cow;
 
@@ -31,18 +32,12 @@ pub(crate) fn conv1x1(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
 }
 
 /// A flex tensor's f32 values in order: borrowed where they already are, else a contiguous copy
-/// (for the hand-written training operations, `same_conv` and `extreme_pool`).
+/// (for the hand-written training operations, `same_conv`, `extreme_pool` and `upsample`).
 pub(crate) fn flex_values(t: &FlexTensor) -> Cow<'_, [f32]> {
     match t.as_slice::<f32>() {
         Some(s) if t.is_contiguous() => Cow::Borrowed(s),
         _ => Cow::Owned(t.to_contiguous().as_slice::<f32>().expect("f32 values").to_vec()),
     }
-}
-
-/// Nearest-neighbour 2× upsampling: [N, C, H, W] → [N, C, 2H, 2W].
-pub(crate) fn upsample2(x: Tensor<4>) -> Tensor<4> {
-    let [n, c, h, w] = x.dims();
-    x.reshape([n, c, h, 1, w, 1]).expand([n, c, h, 2, w, 2]).reshape([n, c, 2 * h, 2 * w])
 }
 
 #[cfg(test)]
@@ -98,12 +93,5 @@ mod tests {
         let device = Device::flex();
         let conv = crate::model::drawn_now(|| Conv2dConfig::new([2, 2], [1, 1]).with_stride([2, 2]).init(&device));
         conv1x1(&conv, input([1, 2, 4, 4], 7));
-    }
-
-    #[test]
-    fn upsampling_repeats_each_pixel_in_a_2x2_block() {
-        let x = Tensor::<4>::from_data(TensorData::new(vec![1.0f32, 2.0, 3.0, 4.0], [1, 1, 2, 2]), &Device::flex());
-        let expected = [1., 1., 2., 2., 1., 1., 2., 2., 3., 3., 4., 4., 3., 3., 4., 4.];
-        assert_eq!(values(upsample2(x)), expected);
     }
 }
