@@ -295,7 +295,7 @@ fn weight_grad(x: &[f32], dims: [usize; 4], g: &[f32], cout: usize, geometry: Ge
             let grad = g[image * cout * hw + p0..].as_ptr();
             // part [cout × k, stored k-major] = g [cout × len] · colsᵀ [len × k]. With the output
             // channels as gemm's rows it packs only the narrow g; with the (k-long) im2col rows as
-            // its rows it would pack, transposing, the whole im2col matrix (twice the time).
+            // its rows it would pack, transposing, the whole im2col matrix (up to twice the time).
             unsafe {
                 gemm(
                     cout,
