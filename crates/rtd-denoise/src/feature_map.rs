@@ -55,28 +55,36 @@ pub struct Rows {
 /// Fills `dst` with pixels p0, p0 + 1, … of a w-wide plane, each read at offset (dx, dy) from
 /// itself, with zero where that falls outside the plane.
 pub(crate) fn gather_shifted(plane: &[f32], w: usize, p0: usize, dx: isize, dy: isize, dst: &mut [f32]) {
-    let h = (plane.len() / w) as isize;
-    let mut r = 0;
-    while r < dst.len() {
-        // One image row's run of the chunk: pixels (px.., py).
-        let (px, py) = ((p0 + r) % w, (p0 + r) / w);
-        let run = (w - px).min(dst.len() - r);
-        let seg = &mut dst[r..r + run];
-        let sy = py as isize + dy;
-        if sy < 0 || sy >= h {
-            seg.fill(0.0);
-        } else {
-            // Run positions i with 0 ≤ px + i + dx < w read the plane; the rest are zero.
-            let lo = (-(px as isize + dx)).clamp(0, run as isize) as usize;
-            let hi = (w as isize - px as isize - dx).clamp(lo as isize, run as isize) as usize;
-            seg[..lo].fill(0.0);
-            if hi > lo {
-                let src = (sy as usize * w + px + lo).wrapping_add_signed(dx);
-                seg[lo..hi].copy_from_slice(&plane[src..src + (hi - lo)]);
-            }
-            seg[hi..].fill(0.0);
+    let (n, w, p0, len) = (plane.len() as isize, w as isize, p0 as isize, dst.len() as isize);
+    // Pixels lo..hi (of dst) are those whose row, shifted by dy, is inside the plane: py + dy in
+    // 0..h. Their sources p + dy·w + dx are one contiguous run, copied in one piece.
+    let lo = (-dy * w - p0).clamp(0, len);
+    let hi = ((n / w - dy) * w - p0).clamp(lo, len);
+    let (lo, hi) = (lo as usize, hi as usize);
+    dst[..lo].fill(0.0);
+    dst[hi..].fill(0.0);
+    if hi == lo {
+        return;
+    }
+    // The run's two ends can leave the plane only through a column shift; those pixels are
+    // cleared with the other out-of-column ones below.
+    let (s0, s1) = (p0 + lo as isize + dy * w + dx, p0 + hi as isize + dy * w + dx);
+    let (c0, c1) = (s0.max(0), s1.min(n));
+    if c1 > c0 {
+        let d0 = lo + (c0 - s0) as usize;
+        dst[d0..d0 + (c1 - c0) as usize].copy_from_slice(&plane[c0 as usize..c1 as usize]);
+    }
+    if dx == 0 {
+        return;
+    }
+    // Columns px with px + dx outside 0..w read the neighbouring row (or outside): zero them.
+    let (bad0, bad1) = if dx > 0 { ((w - dx).max(0), w) } else { (0, (-dx).min(w)) };
+    let (first, last) = (p0 + lo as isize, p0 + hi as isize);
+    for row in first / w..=(last - 1) / w {
+        let (a, b) = ((row * w + bad0).max(first) - p0, (row * w + bad1).min(last) - p0);
+        if b > a {
+            dst[a as usize..b as usize].fill(0.0);
         }
-        r += run;
     }
 }
 
@@ -145,4 +153,39 @@ pub(crate) fn test_convolution(cin: usize, cout: usize, taps: usize, w: usize, h
     let bias = (0..cout).map(|i| test_value(i, 2)).collect();
     let x = Map { w, h, c: cin, data: (0..cin * w * h).map(|i| test_value(i, 3)).collect() };
     (rows, bias, x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shifted gather equals its per-pixel definition for runs that start and end mid-row,
+    /// span one or many rows, and shift by less than, exactly and more than a row or the plane,
+    /// into a buffer holding stale values (every value must be written).
+    #[test]
+    fn gather_shifted_equals_its_definition() {
+        let (w, h) = (7usize, 5usize);
+        let plane: Vec<f32> = (0..w * h).map(|i| i as f32 + 1.0).collect();
+        let shifts = [-8isize, -7, -6, -3, -2, -1, 0, 1, 2, 3, 6, 7, 8];
+        for (p0, len) in [(0, w * h), (3, 1), (3, 9), (10, 20), (0, 7), (28, 7), (33, 2)] {
+            for &dx in &shifts {
+                for &dy in &shifts {
+                    let mut dst = vec![f32::NAN; len];
+                    gather_shifted(&plane, w, p0, dx, dy, &mut dst);
+                    let expected: Vec<f32> = (p0..p0 + len)
+                        .map(|p| {
+                            let (sx, sy) = ((p % w) as isize + dx, (p / w) as isize + dy);
+                            let inside = (0..w as isize).contains(&sx) && (0..h as isize).contains(&sy);
+                            if inside {
+                                plane[sy as usize * w + sx as usize]
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect();
+                    assert_eq!(dst, expected, "p0 {p0} len {len} dx {dx} dy {dy}");
+                }
+            }
+        }
+    }
 }
