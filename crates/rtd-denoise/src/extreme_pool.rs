@@ -21,12 +21,11 @@ use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::flex::FlexTensor;
 use burn::backend::tensor::FloatTensor;
-use burn::backend::TensorMetadata;
 use burn::backend::{backend_extension, Autodiff, Backend, Dispatch, Flex};
 use burn::tensor::{Tensor, TensorData};
 use rayon::prelude::*;
 
-use crate::tensor_ops::flex_values;
+use crate::tensor_ops::{dims4, flex_values};
 
 /// Which pooling window: 3×3 at stride 1 over the valid neighbours, or 2×2 at stride 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,11 +49,6 @@ struct Pooled {
     values: Vec<f32>,
     argument: Vec<u32>,
     dims: [usize; 4],
-}
-
-/// A 4-d flex tensor's sizes.
-fn dims4(t: &FlexTensor) -> [usize; 4] {
-    t.shape().dims()
 }
 
 /// Pools every plane of x: the max or the min of each window, and its argument.

@@ -33,7 +33,7 @@ use gemm::{gemm, Parallelism};
 use rayon::prelude::*;
 
 use crate::feature_map::{gather_shifted, SendPtr, IM2COL_CHUNK};
-use crate::tensor_ops::flex_values;
+use crate::tensor_ops::{dims4, flex_values};
 
 /// A convolution's geometry: kernel height and width, and the dilation of both axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,7 +71,7 @@ pub trait SameConvOps: Backend {
 
 /// A flex tensor's values (borrowed where they are contiguous) and its dimensions.
 fn values(t: &FlexTensor) -> (std::borrow::Cow<'_, [f32]>, [usize; 4]) {
-    (flex_values(t), t.shape().dims())
+    (flex_values(t), dims4(t))
 }
 
 /// A flex tensor of `dims` holding `data`.

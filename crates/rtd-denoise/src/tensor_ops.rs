@@ -7,6 +7,7 @@
 use std::borrow::Cow;
 
 use burn::backend::flex::FlexTensor;
+use burn::backend::TensorMetadata;
 use burn::nn::conv::Conv2d;
 use burn::nn::PaddingConfig2d;
 use burn::tensor::Tensor;
@@ -29,6 +30,11 @@ pub(crate) fn conv1x1(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
         y = y + bias.val().reshape([1, cout, 1]);
     }
     y.reshape([n, cout, h, w])
+}
+
+/// A 4-d flex tensor's sizes.
+pub(crate) fn dims4(t: &FlexTensor) -> [usize; 4] {
+    t.shape().dims()
 }
 
 /// A flex tensor's f32 values in order: borrowed where they already are, else a contiguous copy

@@ -13,23 +13,17 @@ use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::flex::FlexTensor;
 use burn::backend::tensor::FloatTensor;
-use burn::backend::TensorMetadata;
 use burn::backend::{backend_extension, Autodiff, Backend, Dispatch, Flex};
 use burn::tensor::{Tensor, TensorData};
 use rayon::prelude::*;
 
-use crate::tensor_ops::flex_values;
+use crate::tensor_ops::{dims4, flex_values};
 
 /// The differentiable operation, routed by burn's dispatch to flex or to its autodiff wrapper.
 #[backend_extension(Flex, Autodiff)]
 pub trait UpsampleOps: Backend {
     /// Nearest-neighbour 2× upsampling: x [N, C, H, W] → [N, C, 2H, 2W].
     fn upsample2(x: FloatTensor<Self>) -> FloatTensor<Self>;
-}
-
-/// A 4-d flex tensor's sizes.
-fn dims4(t: &FlexTensor) -> [usize; 4] {
-    t.shape().dims()
 }
 
 /// y[n][c][2y + i][2x + j] = x[n][c][y][x] for i, j in {0, 1}.
@@ -91,8 +85,7 @@ impl<C: CheckpointStrategy> UpsampleOps for Autodiff<Flex, C> {
         match UpsampleBackward.prepare::<C>([x.node()]).compute_bound().stateful() {
             OpsKind::Tracked(prep) => {
                 let inner = x.into_primitive();
-                let input = dims4(&inner);
-                prep.finish(input, repeat(&flex_values(&inner), input))
+                prep.finish(dims4(&inner), Flex::upsample2(inner))
             }
             OpsKind::UnTracked(prep) => prep.finish(Flex::upsample2(x.into_primitive())),
         }
