@@ -126,6 +126,11 @@ fn bad_arguments_fail_cleanly() {
     assert_fails(&rtd(&["render", &c, "-o", dir.path().to_str().unwrap()]), "");
     assert_fails(&rtd(&["render", &c, "-o", o, "--report", "/nonexistent-dir/r.json"]), "r.json");
     assert_fails(&rtd(&["frobnicate"]), "frobnicate");
+    // `bench suite` without scenes reads the bundled folder, which is missing outside the
+    // repository: named as missing (not as an unknown scene format), before any output exists.
+    let suite =
+        Command::new(env!("CARGO_BIN_EXE_rtd")).current_dir(dir.path()).args(["bench", "suite", "-o", "s"]).output();
+    assert_fails(&suite.unwrap(), "scenes: no such folder");
     // Missing arguments are named, not just announced.
     assert_fails(&rtd(&["render", "-o", o]), "<SCENE>");
     assert_fails(&rtd(&["train", "-o", o]), "--data <DATA>");

@@ -111,7 +111,14 @@ fn speed(args: &SpeedArgs) -> anyhow::Result<()> {
 fn suite(args: &SuiteArgs) -> anyhow::Result<()> {
     let model = args.pipeline.denoiser.load()?;
     let mut scenes = vec![];
-    let inputs = if args.scenes.is_empty() { vec![std::path::PathBuf::from("scenes")] } else { args.scenes.clone() };
+    let inputs = if args.scenes.is_empty() {
+        // The bundled scenes, as seen from the repository root.
+        let bundled = std::path::PathBuf::from("scenes");
+        anyhow::ensure!(bundled.is_dir(), "scenes: no such folder (run from the repository root, or name the scenes)");
+        vec![bundled]
+    } else {
+        args.scenes.clone()
+    };
     for p in inputs {
         if p.is_dir() {
             let mut found: Vec<_> = std::fs::read_dir(&p)
