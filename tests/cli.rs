@@ -142,6 +142,10 @@ fn bad_arguments_fail_cleanly() {
         assert_fails(&rtd(&args), &format!("unexpected argument '{}'", removed[0]));
     }
     assert_fails(&rtd(&["train", "--data", o, "-o", o, "--exposure-key", "0"]), "--exposure-key");
+    assert_fails(
+        &rtd(&["train", "--data", o, "-o", o, "--bilinear-blend"]),
+        "--bilinear-blend: the network predicts colour directly",
+    );
     // Absurd sample counts and spans: refused as arguments, before any work (1e20 s once reached
     // a panic in Duration; an i64::MAX-ms lease overflowed the queue's clock).
     assert_fails(&rtd(&["render", &c, "-o", o, "--spp", "99999999999"]), "--spp");

@@ -443,6 +443,8 @@ pub struct FastNet {
     /// Per level, full resolution first, the kernel-predicting heads (kernel logits, then the
     /// blend logit where there is one), which replace `output` when present.
     heads: Option<Vec<Conv>>,
+    /// Whether the heads' levels are blended through bilinear upsampling (else nearest).
+    bilinear: bool,
 }
 
 impl FastNet {
@@ -467,6 +469,7 @@ impl FastNet {
                 };
                 k.kernels.iter().enumerate().map(head).collect()
             }),
+            bilinear: net.kernel.as_ref().is_some_and(|k| k.bilinear),
         }
     }
 
@@ -517,7 +520,7 @@ impl FastNet {
         }
         logits.push(out);
         logits.reverse();
-        let data = crate::kernel_output::apply_planar(&x.data, x.w, x.h, &logits);
+        let data = crate::kernel_output::apply_planar(&x.data, x.w, x.h, &logits, self.bilinear);
         logits.into_iter().for_each(|m| scratch.recycle(m));
         Map { w: x.w, h: x.h, c: 3, data }
     }
@@ -538,12 +541,22 @@ mod tests {
             DenoiserConfig::new(vec![8, 12]).with_bottleneck_blocks(0),
             DenoiserConfig::new(vec![8, 12, 16]).with_kernel_output(Some(true)),
             DenoiserConfig::new(vec![8]).with_kernel_output(Some(true)),
+            DenoiserConfig::new(vec![8, 12, 16]).with_kernel_output(Some(true)).with_bilinear_blend(Some(true)),
         ];
         // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row;
         // 24×100 runs the full-resolution blocks in bands, the last one short.
         // 136×72 runs several Winograd vectors and batches per row, and bands at the coarse levels.
-        let sizes =
-            [(0, 20, 12), (1, 20, 12), (2, 20, 12), (0, 52, 44), (1, 24, 100), (0, 136, 72), (3, 52, 44), (4, 20, 12)];
+        let sizes = [
+            (0, 20, 12),
+            (1, 20, 12),
+            (2, 20, 12),
+            (0, 52, 44),
+            (1, 24, 100),
+            (0, 136, 72),
+            (3, 52, 44),
+            (4, 20, 12),
+            (5, 52, 44),
+        ];
         for (i, w, h) in sizes {
             let config = &configs[i];
             let net = config.init_seeded(&device, 3);

@@ -25,16 +25,22 @@ pub struct KernelOutput {
     pub(crate) kernels: Vec<Conv2d>,
     /// Per level but the coarsest, a 1×1 convolution to the logit of the coarse level's weight.
     pub(crate) blends: Vec<Conv2d>,
+    /// Whether the coarser level's correction is upsampled bilinearly (else by nearest
+    /// neighbour, whose 2×2 blocks nest into visible 4×4 ones where the correction is large);
+    /// from [`crate::model::DenoiserConfig::blends_bilinearly`]. Not a weight.
+    pub(crate) bilinear: bool,
 }
 
 impl KernelOutput {
-    /// Heads for levels of `channels` channels, full resolution first.
-    pub fn new(channels: &[usize], device: &Device) -> Self {
+    /// Heads for levels of `channels` channels, full resolution first, blending through
+    /// bilinear upsampling if `bilinear`, else nearest.
+    pub fn new(channels: &[usize], bilinear: bool, device: &Device) -> Self {
         let k2 = KERNEL_SIZE * KERNEL_SIZE;
         let one = |cin: usize, cout: usize| Conv2dConfig::new([cin, cout], [1, 1]).init(device);
         KernelOutput {
             kernels: channels.iter().map(|&c| one(c, k2)).collect(),
             blends: channels[..channels.len() - 1].iter().map(|&c| one(c, 1)).collect(),
+            bilinear,
         }
     }
 
@@ -76,8 +82,14 @@ impl KernelOutput {
         let mut out = filtered.pop().expect("at least one level");
         for (l, fine) in filtered.into_iter().enumerate().rev() {
             let alpha = sigmoid(conv1x1(&self.blends[l], features[l].clone())); // [N, 1, h, w]
-            let low = upsample2(box_down2(fine.clone()));
-            out = fine + (upsample2(out) - low) * alpha;
+            out = if self.bilinear {
+                // The same, upsampling the difference once (upsampling is linear).
+                let correction = out - box_down2(fine.clone()); // [N, 3, h/2, w/2]
+                fine + upsample_bilinear2(correction) * alpha
+            } else {
+                let low = upsample2(box_down2(fine.clone()));
+                fine + (upsample2(out) - low) * alpha
+            };
         }
         out.clamp_min(0.0).add_scalar(1.0).log()
     }
@@ -87,6 +99,19 @@ impl KernelOutput {
 fn box_down2(x: Tensor<4>) -> Tensor<4> {
     let [n, c, h, w] = x.dims();
     x.reshape([n, c, h / 2, 2, w / 2, 2]).mean_dim(5).mean_dim(3).reshape([n, c, h / 2, w / 2])
+}
+
+/// Bilinear 2× upsampling with half-pixel centres and edges clamped: nearest upsampling, then
+/// the [1, 2, 1] / 4 filter along each axis (edges replicated), which gives each output pixel
+/// ¾ of its source pixel and ¼ of the neighbour on its side, per axis.
+fn upsample_bilinear2(x: Tensor<4>) -> Tensor<4> {
+    let up = upsample2(x);
+    let [_, _, h, w] = up.dims();
+    let p = pad_replicate(up, 1); // [N, C, h + 2, w + 2]
+    let tent = |t: Tensor<4>, dim: usize, len: usize| {
+        (t.clone().narrow(dim, 0, len) + t.clone().narrow(dim, 2, len)) * 0.25 + t.narrow(dim, 1, len) * 0.5
+    };
+    tent(tent(p, 3, w), 2, h)
 }
 
 /// Edge-replicated padding of `p` pixels on every side.
@@ -122,9 +147,9 @@ fn apply_kernels(x: Tensor<4>, weights: Tensor<4>) -> Tensor<4> {
 
 /// The fast path's [`KernelOutput::forward`] on planar maps: `noisy` holds the three encoded
 /// colour planes of a `w`×`h` image, and `logits[l]` the heads' outputs at level l (K² kernel
-/// logits, then the blend logit at every level but the coarsest). Returns the three encoded
-/// output planes.
-pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map]) -> Vec<f32> {
+/// logits, then the blend logit at every level but the coarsest). `bilinear` chooses the
+/// blend's upsampling, as [`KernelOutput`]'s field does. Returns the three encoded output planes.
+pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear: bool) -> Vec<f32> {
     let top = crate::encode::MAX_EXPOSED.ln_1p();
     let mut level: Vec<f32> = noisy[..3 * w * h].iter().map(|y| y.clamp(0.0, top).exp_m1()).collect();
     let mut filtered = Vec::with_capacity(logits.len());
@@ -141,13 +166,27 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map]) -> Vec<f3
         let low = box_down2_planar(&fine, lw, lh);
         let blend = &logits[l].data[KERNEL_SIZE * KERNEL_SIZE * lw * lh..][..lw * lh];
         let mut next = fine;
+        let (cw, ch) = (lw / 2, lh / 2);
         next.par_chunks_mut(lw).enumerate().for_each(|(row, dst)| {
             let (c, y) = (row / lh, row % lh);
-            let coarse = (c * (lh / 2) + y / 2) * (lw / 2);
+            let correction = |cy: usize, cx: usize| {
+                let i = (c * ch + cy) * cw + cx;
+                out[i] - low[i]
+            };
+            // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
+            let (cy, ny) = (y / 2, if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) });
             for (x, v) in dst.iter_mut().enumerate() {
                 // Logistic weight of the coarser level's band over this level's own.
                 let alpha = 1.0 / (1.0 + (-blend[y * lw + x]).exp());
-                *v += (out[coarse + x / 2] - low[coarse + x / 2]) * alpha;
+                let cx = x / 2;
+                let up = if bilinear {
+                    let nx = if x % 2 == 0 { cx.saturating_sub(1) } else { (cx + 1).min(cw - 1) };
+                    let row = |r: usize| 0.75 * correction(r, cx) + 0.25 * correction(r, nx);
+                    0.75 * row(cy) + 0.25 * row(ny)
+                } else {
+                    correction(cy, cx)
+                };
+                *v += up * alpha;
             }
         });
         out = next;
@@ -290,13 +329,48 @@ mod tests {
         assert_eq!(exp_nonpositive(0.0), 1.0);
     }
 
+    /// Bilinear upsampling is ¾ of the source pixel and ¼ of its neighbour on the output
+    /// pixel's side, per axis, with the edges clamped; on odd and one-pixel sizes too.
+    #[test]
+    fn bilinear_upsampling_matches_its_definition() {
+        for (h, w) in [(3, 5), (1, 4), (2, 1), (1, 1)] {
+            let src: Vec<f32> = (0..2 * h * w).map(|i| ((i * 7919) % 17) as f32 - 8.0).collect();
+            let out = values(upsample_bilinear2(tensor(src.clone(), [1, 2, h, w])));
+            let at = |c: usize, y: isize, x: isize| {
+                src[(c * h + y.clamp(0, h as isize - 1) as usize) * w + x.clamp(0, w as isize - 1) as usize]
+            };
+            for c in 0..2 {
+                for y in 0..2 * h {
+                    for x in 0..2 * w {
+                        let (sy, sx) = ((y / 2) as isize, (x / 2) as isize);
+                        let (ny, nx) = (sy + if y % 2 == 0 { -1 } else { 1 }, sx + if x % 2 == 0 { -1 } else { 1 });
+                        let row = |r| 0.75 * at(c, r, sx) + 0.25 * at(c, r, nx);
+                        let want = 0.75 * row(sy) + 0.25 * row(ny);
+                        let got = out[(c * 2 * h + y) * 2 * w + x];
+                        assert!(
+                            (got - want).abs() < 1e-5,
+                            "{h}x{w} channel {c} pixel ({x}, {y}): {got} against {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     /// Normalised kernels keep a flat image flat at every level, whatever the heads predict,
-    /// so the output of a constant input is that constant (the encoding round-trips).
+    /// so the output of a constant input is that constant (the encoding round-trips), with
+    /// either upsampling in the blend.
     #[test]
     fn a_flat_image_comes_out_unchanged() {
+        for bilinear in [false, true] {
+            flat_stays_flat(bilinear);
+        }
+    }
+
+    fn flat_stays_flat(bilinear: bool) {
         let device = Device::flex();
         let channels = [4, 6, 8];
-        let heads = KernelOutput::new(&channels, &device);
+        let heads = KernelOutput::new(&channels, bilinear, &device);
         let (h, w) = (8, 12);
         let level = |l: usize, c: usize| {
             let (hh, ww) = (h >> l, w >> l);

@@ -63,6 +63,11 @@ pub struct DenoiserConfig {
     /// encoded colour itself. Absent (older model files) means no; read it through
     /// [`DenoiserConfig::predicts_kernels`].
     pub kernel_output: Option<bool>,
+    /// Whether a kernel-predicting output blends each coarser level's correction in through
+    /// bilinear upsampling instead of nearest (whose blocks show where the correction is
+    /// large). Absent (older model files) means nearest; read it through
+    /// [`DenoiserConfig::blends_bilinearly`].
+    pub bilinear_blend: Option<bool>,
 }
 
 impl DenoiserConfig {
@@ -79,6 +84,11 @@ impl DenoiserConfig {
     /// Whether the output is kernel-predicting (see the `kernel_output` field).
     pub fn predicts_kernels(&self) -> bool {
         self.kernel_output.unwrap_or(false)
+    }
+
+    /// Whether a kernel-predicting output blends bilinearly (see the `bilinear_blend` field).
+    pub fn blends_bilinearly(&self) -> bool {
+        self.bilinear_blend.unwrap_or(false)
     }
 
     /// The exposure key (see the `exposure_key` field).
@@ -178,7 +188,7 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
-        let kernel = self.predicts_kernels().then(|| KernelOutput::new(c, device));
+        let kernel = self.predicts_kernels().then(|| KernelOutput::new(c, self.blends_bilinearly(), device));
         let net = DenoiserNet { kernel, stem, encoders, bottleneck, decoders, output };
         net.map(&mut NumberedParams(0))
     }
@@ -392,7 +402,7 @@ impl DenoiserNet {
         let _held = backend_rng();
         if self.kernel.is_none() {
             device.seed(seed);
-            self.kernel = Some(KernelOutput::new(&config.channels, device));
+            self.kernel = Some(KernelOutput::new(&config.channels, config.blends_bilinearly(), device));
         }
         self.map(&mut NumberedParams(0))
     }

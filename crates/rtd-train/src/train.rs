@@ -81,7 +81,11 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     }
     // A direct-prediction model seeds a kernel-predicting one: its heads start random.
     let adds_kernels = options.config.predicts_kernels() && !config.predicts_kernels();
-    let config = config.with_demodulate(options.config.demodulate).with_exposure_key(options.config.exposure_key);
+    // The blend's upsampling has no weights either.
+    let config = config
+        .with_demodulate(options.config.demodulate)
+        .with_exposure_key(options.config.exposure_key)
+        .with_bilinear_blend(options.config.bilinear_blend);
     let target = config.clone().with_input_channels(options.config.input_channels);
     let target = if adds_kernels { target.with_kernel_output(options.config.kernel_output) } else { target };
     if target != options.config {

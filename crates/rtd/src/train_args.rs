@@ -150,6 +150,11 @@ pub struct TrainModelArgs {
     /// model's config; with --init, a direct-prediction model gets new, random heads).
     #[arg(long)]
     pub kernel_output: bool,
+    /// Blend the kernel levels through bilinear upsampling of each coarser level's correction
+    /// instead of nearest, whose blocks show where the correction is large (saved in the
+    /// model's config; for a kernel-predicting network, from --kernel-output or --init)
+    #[arg(long)]
+    pub bilinear_blend: bool,
     /// Exposure the log-average luminance is mapped to before the log transfer (saved in the
     /// model's config; default 0.18, or the --init model's): larger keys give dark regions more
     /// of the transfer's range and of the loss

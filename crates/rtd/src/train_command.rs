@@ -115,6 +115,11 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
     };
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
     let config = if model.kernel_output { config.with_kernel_output(Some(true)) } else { config };
+    let config = if model.bilinear_blend { config.with_bilinear_blend(Some(true)) } else { config };
+    anyhow::ensure!(
+        !config.blends_bilinearly() || config.predicts_kernels(),
+        "--bilinear-blend: the network predicts colour directly, so it has no kernel levels to blend (add --kernel-output)"
+    );
     let config = match model.exposure_key {
         Some(k) => config.with_exposure_key(Some(k)),
         None => config,
