@@ -1,6 +1,7 @@
 //! Training batches: every view of the dataset is encoded once per noisy sample count (with
 //! the auto-exposure inference would use), then random crops are cut, flipped, transposed,
-//! colour-permuted and stripped of optional guide layers, exactly as inference can see them.
+//! colour-permuted and stripped of optional guide layers, exactly as inference can see them
+//! (down to colour alone, whose guide is the noisy colour itself).
 
 use std::path::{Path, PathBuf};
 
@@ -8,7 +9,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rtd_denoise::encode::{demod_albedo, demod_factor, encode_color_plane, encode_deviation_plane, Encoding};
-use rtd_denoise::plane_encoder::encode_planes;
+use rtd_denoise::plane_encoder::{encode_planes, PlaneEncoder};
 use rtd_denoise::planes::{OptionalInput, Plane};
 use rtd_denoise::DenoiseInput;
 use rtd_image::{HdrImage, Layer};
@@ -105,6 +106,9 @@ struct Encoded {
     /// without demodulation, used by crops whose albedo layer is dropped (inference demodulates
     /// only when albedo is given).
     plain: Option<(Vec<f32>, Vec<f32>)>,
+    /// The guide planes (3 × H × W) of colour alone, where the noisy colour stands in for the
+    /// guide as `rtd denoise` makes it stand in.
+    colour_guide: Vec<f32>,
 }
 
 /// One training batch, channel-major: `n` crops of side `s`.
@@ -139,6 +143,19 @@ fn encode_rgb(img: &HdrImage, albedo: Option<&HdrImage>, exposure: f32) -> Vec<f
     out
 }
 
+/// The three guide planes of `colour` standing in for its own guide, encoded as inference
+/// encodes them.
+fn encode_colour_as_guide(colour: &HdrImage, exposure: f32, encoding: Encoding) -> Result<Vec<f32>, TrainError> {
+    let n = colour.pixels.len();
+    let input = DenoiseInput::new(colour, colour);
+    let encoder = PlaneEncoder::new(&input, exposure, encoding)?;
+    let mut out = vec![0.0f32; 3 * n];
+    for (k, plane) in out.chunks_mut(n).enumerate() {
+        encoder.encode(Plane::Guide(k).index(), 0..n, plane);
+    }
+    Ok(out)
+}
+
 /// Random crops for training.
 pub struct CropSampler {
     encoded: Vec<Encoded>,
@@ -149,6 +166,9 @@ pub struct CropSampler {
     pub drop_probability: f32,
     /// Probability that a crop loses its variance.
     pub variance_drop_probability: f32,
+    /// Probability that a crop is colour alone: its guide is the noisy colour, and it has no
+    /// albedo, normal, AO or depth.
+    pub colour_only_probability: f32,
     /// Input planes per crop: the model's width.
     channels: usize,
 }
@@ -156,6 +176,10 @@ pub struct CropSampler {
 /// Default probability that a crop loses its albedo+normal (and, independently, AO+depth, and
 /// the variance) layers, so the model also serves inputs from other software.
 pub const DROP_PROBABILITY: f32 = 0.3;
+
+/// Default probability that a crop is colour alone (see
+/// [`CropSampler::colour_only_probability`]).
+pub const COLOUR_ONLY_PROBABILITY: f32 = 0.1;
 
 impl CropSampler {
     /// Encodes every view at every stored sample count (or only those in `spp_levels`) as
@@ -187,7 +211,17 @@ impl CropSampler {
                 });
                 let n = v.reference.pixels.len();
                 let scale = (0..3 * n).map(|j| demod_factor(albedo, j % n, j / n) / e).collect();
-                encoded.push(Encoded { w: v.size.0, h: v.size.1, planes, target, scale, exposure: e, plain });
+                let colour_guide = encode_colour_as_guide(input.color, e, encoding)?;
+                encoded.push(Encoded {
+                    w: v.size.0,
+                    h: v.size.1,
+                    planes,
+                    target,
+                    scale,
+                    exposure: e,
+                    plain,
+                    colour_guide,
+                });
             }
         }
         let channels = encoding.channels;
@@ -196,8 +230,15 @@ impl CropSampler {
             crop,
             drop_probability: DROP_PROBABILITY,
             variance_drop_probability: DROP_PROBABILITY,
+            colour_only_probability: 0.0,
             channels,
         })
+    }
+
+    /// Sets the probability that a crop is colour alone.
+    pub fn colour_only_probability(mut self, p: f32) -> Self {
+        self.colour_only_probability = p;
+        self
     }
 
     /// Sets the probability that a crop loses each optional pair of guide layers.
@@ -227,6 +268,9 @@ impl CropSampler {
             perm.shuffle(&mut rng);
             let drop_an = rng.random::<f32>() < self.drop_probability;
             let drop_ad = rng.random::<f32>() < self.drop_probability;
+            // (No draw at probability 0, so such a run sees the batches it saw before.)
+            let colour_only = self.colour_only_probability > 0.0 && rng.random::<f32>() < self.colour_only_probability;
+            let (drop_an, drop_ad) = (drop_an || colour_only, drop_ad || colour_only);
             let drop_var = rng.random::<f32>() < self.variance_drop_probability;
             let black = rng.random::<f32>() < 0.02;
             // Source pixel of crop pixel (x, y) after the flips and transpose.
@@ -255,6 +299,7 @@ impl CropSampler {
                 let zero = (black && noise) || dropped;
                 // Without albedo, colour and deviation are not demodulated.
                 let plane = match (&e.plain, source, drop_an) {
+                    (_, Plane::Guide(k), _) if colour_only => &e.colour_guide[k * n_px..][..n_px],
                     (Some((plain, _)), Plane::Color(k), true) => &plain[k * n_px..][..n_px],
                     (Some((plain, _)), Plane::Deviation(k), true) => &plain[(3 + k) * n_px..][..n_px],
                     _ => &e.planes[source.index() * n_px..][..n_px],
@@ -336,6 +381,7 @@ mod tests {
                     scale: e.scale.clone(),
                     exposure: e.exposure,
                     plain: e.plain.clone(),
+                    colour_guide: e.colour_guide.clone(),
                 })
                 .collect();
             CropSampler {
@@ -343,6 +389,7 @@ mod tests {
                 crop: self.crop,
                 drop_probability: self.drop_probability,
                 variance_drop_probability: p,
+                colour_only_probability: self.colour_only_probability,
                 channels: self.channels,
             }
         }
@@ -443,6 +490,47 @@ mod tests {
         let legacy = Encoding { channels: rtd_denoise::planes::LEGACY_INPUT_CHANNELS, ..Encoding::default() };
         let sampler = CropSampler::new(std::slice::from_ref(&view), 8, legacy, None).unwrap();
         assert_eq!(sampler.batch(9, 1, 2).inputs.len(), 2 * 16 * px);
+    }
+
+    #[test]
+    fn colour_only_crops_are_colour_alone_as_inference_sees_it() {
+        // Colour above 1 in places, so the guide's clamp to [0, 1] is exercised.
+        let mut view = toy_view();
+        let bright = HdrImage::from_pixels(8, 8, view.noisy[0].1.pixels.iter().map(|p| *p * 3.0).collect());
+        view.noisy = vec![(8, bright.clone())];
+        let (px, c) = (64, rtd_denoise::INPUT_CHANNELS);
+        let dropped =
+            [Plane::Albedo(0), Plane::Normal(0), Plane::Ao, Plane::Depth, Plane::HasAlbedoNormal, Plane::HasAoDepth];
+        for demodulate in [false, true] {
+            let encoding = Encoding { demodulate, ..Encoding::default() };
+            let e = encoding.exposure(&bright);
+            let sampler = CropSampler::new(std::slice::from_ref(&view), 8, encoding, None).unwrap();
+            let x = sampler.colour_only_probability(1.0).batch(3, 2, 16).inputs;
+            for b in 0..16 {
+                let crop = &x[b * c * px..][..c * px];
+                for p in dropped {
+                    let n = if matches!(p, Plane::Albedo(_) | Plane::Normal(_)) { 3 } else { 1 };
+                    assert!(crop[p.index() * px..][..n * px].iter().all(|v| *v == 0.0), "{p:?} shown");
+                }
+                // The colour is not demodulated (no albedo), and the guide is that colour,
+                // linear and clamped to [0, 1], channel by channel and pixel by pixel through
+                // the flips and the channel permutation.
+                for k in 0..3 {
+                    for i in 0..px {
+                        let linear = (crop[Plane::Color(k).index() * px + i].exp() - 1.0) / e;
+                        let guide = crop[Plane::Guide(k).index() * px + i];
+                        assert!(
+                            (guide - linear.min(1.0)).abs() < 1e-4,
+                            "demodulate {demodulate}: {guide} against {linear}"
+                        );
+                    }
+                }
+            }
+            // Some guide pixels reach the clamp and some do not, so the check saw both sides of it.
+            let guides: Vec<f32> =
+                x.chunks(c * px).flat_map(|crop| crop[Plane::Guide(0).index() * px..][..3 * px].to_vec()).collect();
+            assert!(guides.contains(&1.0) && guides.iter().any(|v| *v > 0.0 && *v < 1.0));
+        }
     }
 
     #[test]

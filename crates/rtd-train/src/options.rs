@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use rtd_denoise::DenoiserConfig;
 use serde::{Deserialize, Serialize};
 
-use crate::data::DROP_PROBABILITY;
+use crate::data::{COLOUR_ONLY_PROBABILITY, DROP_PROBABILITY};
 use crate::dataset::Manifest;
 use crate::TrainError;
 
@@ -56,6 +56,11 @@ pub struct TrainOptions {
     /// made before the variance planes had none to lose: their state files read 1.
     #[serde(default = "never_shown")]
     pub variance_drop: f32,
+    /// Probability that a crop is colour alone: the noisy colour stands in for its guide, and
+    /// it has no albedo, normal, AO or depth, as `rtd denoise` sees a file with no passes. Runs
+    /// made before this case existed had none: their state files read 0.
+    #[serde(default)]
+    pub colour_only: f32,
     /// Score every epoch on the validation views of this dataset instead of the training
     /// dataset's own: a held-out split made apart (`rtd datagen --split validation`), for a
     /// training set made with `--split training`, which has none.
@@ -93,6 +98,7 @@ impl Default for TrainOptions {
             spp_levels: None,
             guide_drop: DROP_PROBABILITY,
             variance_drop: DROP_PROBABILITY,
+            colour_only: COLOUR_ONLY_PROBABILITY,
             validation_data: None,
             more_data: vec![],
         }
@@ -146,6 +152,11 @@ impl TrainOptions {
     /// [0, 1]).
     pub fn guide_drop(mut self, p: f32) -> Self {
         self.guide_drop = p.clamp(0.0, 1.0);
+        self
+    }
+    /// Sets the probability that a crop is colour alone (clamped to [0, 1]).
+    pub fn colour_only(mut self, p: f32) -> Self {
+        self.colour_only = p.clamp(0.0, 1.0);
         self
     }
     /// Sets the probability that a crop loses its variance (clamped to [0, 1]).
@@ -230,6 +241,9 @@ impl TrainOptions {
         }
         if !(0.0..=1.0).contains(&self.variance_drop) {
             return Some(format!("the variance drop probability {} is not in [0, 1]", self.variance_drop));
+        }
+        if !(0.0..=1.0).contains(&self.colour_only) {
+            return Some(format!("the colour-only probability {} is not in [0, 1]", self.colour_only));
         }
         let (crop, align) = (self.crop, self.config.alignment());
         if crop == 0 || crop % align != 0 {

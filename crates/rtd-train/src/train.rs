@@ -213,7 +213,8 @@ fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<Vi
     let sampler =
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
             .drop_probability(options.guide_drop)
-            .variance_drop_probability(options.variance_drop);
+            .variance_drop_probability(options.variance_drop)
+            .colour_only_probability(options.colour_only);
     Ok((sampler, val_views))
 }
 

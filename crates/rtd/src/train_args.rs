@@ -181,6 +181,11 @@ pub struct TrainLossArgs {
     /// files from other software, which have none (1: never show it).
     #[arg(long, default_value_t = rtd_train::data::DROP_PROBABILITY, value_parser = probability)]
     pub variance_drop: f32,
+    /// Probability that a training crop is colour alone: the noisy colour stands in for its
+    /// guide and it has no albedo, normal, AO or depth, as `rtd denoise` sees a file without
+    /// passes
+    #[arg(long, default_value_t = rtd_train::data::COLOUR_ONLY_PROBABILITY, value_parser = probability)]
+    pub colour_only: f32,
 }
 
 /// A loss weight in [0, 100].

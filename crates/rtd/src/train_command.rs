@@ -132,6 +132,7 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         .spp_levels((!loss.spp_levels.is_empty()).then(|| loss.spp_levels.clone()))
         .guide_drop(loss.guide_drop)
         .variance_drop(loss.variance_drop)
+        .colour_only(loss.colour_only)
         .validation_data(args.validation_data.clone())
         .more_data(args.more_data.clone())
         .seed(schedule.seed)
