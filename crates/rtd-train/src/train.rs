@@ -406,10 +406,12 @@ mod tests {
         };
         let old = state("0.0", "null", "null");
         let parsed: TrainState = serde_json::from_str(&old).unwrap();
-        // Made before the variance planes: 16 input planes, and no variance to show.
+        // Made before the variance planes: 16 input planes, and no variance to show; and before
+        // the colour-only crops, so none of those.
         let before_variance = TrainOptions::default()
             .config(DenoiserConfig::unet().with_input_channels(rtd_denoise::planes::LEGACY_INPUT_CHANNELS))
-            .variance_drop(1.0);
+            .variance_drop(1.0)
+            .colour_only(0.0);
         assert_eq!(parsed.options, before_variance);
         assert_eq!(parsed.history[0].validation.map(|v| v.noisy_psnr), Some(24.0));
         assert_eq!(removed_option(&old), None);
