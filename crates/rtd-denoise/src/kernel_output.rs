@@ -165,14 +165,13 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
         let (lw, lh) = (w >> l, h >> l);
         let low = box_down2_planar(&fine, lw, lh);
         let blend = &logits[l].data[KERNEL_SIZE * KERNEL_SIZE * lw * lh..][..lw * lh];
+        // The coarser result's difference from this level's own low band, once per coarse pixel.
+        let correction: Vec<f32> = out.iter().zip(&low).map(|(o, l)| o - l).collect();
         let mut next = fine;
         let (cw, ch) = (lw / 2, lh / 2);
         next.par_chunks_mut(lw).enumerate().for_each(|(row, dst)| {
             let (c, y) = (row / lh, row % lh);
-            let correction = |cy: usize, cx: usize| {
-                let i = (c * ch + cy) * cw + cx;
-                out[i] - low[i]
-            };
+            let at = |cy: usize, cx: usize| correction[(c * ch + cy) * cw + cx];
             // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
             let (cy, ny) = (y / 2, if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) });
             for (x, v) in dst.iter_mut().enumerate() {
@@ -181,10 +180,10 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
                 let cx = x / 2;
                 let up = if bilinear {
                     let nx = if x % 2 == 0 { cx.saturating_sub(1) } else { (cx + 1).min(cw - 1) };
-                    let row = |r: usize| 0.75 * correction(r, cx) + 0.25 * correction(r, nx);
+                    let row = |r: usize| 0.75 * at(r, cx) + 0.25 * at(r, nx);
                     0.75 * row(cy) + 0.25 * row(ny)
                 } else {
-                    correction(cy, cx)
+                    at(cy, cx)
                 };
                 *v += up * alpha;
             }
