@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rtd_image::HdrImage;
 
-use crate::encode::{decode_color, demod_albedo, demod_factor, DenoiseInput};
+use crate::encode::{add_decoded_row, demod_albedo, demod_factor, DenoiseInput};
 use crate::fast::{FastNet, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::plane_encoder::{PlaneEncoder, PlaneSource};
@@ -229,7 +229,9 @@ impl Denoiser {
         let mut sum = vec![0.0f32; 3 * n];
         for t in &Dihedral::ORDER[..self.passes] {
             let out = self.run_source_as(PlaneSource::Inputs(&encoder), w as usize, h as usize, *t);
-            sum.par_iter_mut().zip(out.par_iter()).for_each(|(s, o)| *s += decode_color(*o, exposure));
+            sum.par_chunks_mut(w as usize)
+                .zip(out.par_chunks(w as usize))
+                .for_each(|(s, o)| add_decoded_row(s, o, exposure));
         }
         let passes = self.passes as f32;
         // Multiply the albedo back in if the colour was demodulated.

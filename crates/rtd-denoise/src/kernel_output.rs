@@ -14,6 +14,7 @@ use rayon::prelude::*;
 use crate::feature_map::Map;
 use crate::tensor_ops::conv1x1;
 use crate::upsample::upsample2;
+use crate::vector_math::{exp_m1_row, exp_nonpositive, ln_1p_row, logistic, multiversioned};
 
 /// The side of each predicted kernel.
 pub const KERNEL_SIZE: usize = 5;
@@ -151,7 +152,8 @@ fn apply_kernels(x: Tensor<4>, weights: Tensor<4>) -> Tensor<4> {
 /// blend's upsampling, as [`KernelOutput`]'s field does. Returns the three encoded output planes.
 pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear: bool) -> Vec<f32> {
     let top = crate::encode::MAX_EXPOSED.ln_1p();
-    let mut level: Vec<f32> = noisy[..3 * w * h].iter().map(|y| y.clamp(0.0, top).exp_m1()).collect();
+    let mut level = vec![0.0; 3 * w * h];
+    level.par_chunks_mut(w).zip(noisy[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| exp_m1_row(dst, src, top));
     let mut filtered = Vec::with_capacity(logits.len());
     for (l, lg) in logits.iter().enumerate() {
         if l > 0 {
@@ -168,29 +170,40 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
         // The coarser result's difference from this level's own low band, once per coarse pixel.
         let correction: Vec<f32> = out.iter().zip(&low).map(|(o, l)| o - l).collect();
         let mut next = fine;
-        let (cw, ch) = (lw / 2, lh / 2);
+        let coarse = (&correction[..], lw / 2, lh / 2);
         next.par_chunks_mut(lw).enumerate().for_each(|(row, dst)| {
             let (c, y) = (row / lh, row % lh);
-            let at = |cy: usize, cx: usize| correction[(c * ch + cy) * cw + cx];
-            // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
-            let (cy, ny) = (y / 2, if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) });
-            for (x, v) in dst.iter_mut().enumerate() {
-                // Logistic weight of the coarser level's band over this level's own.
-                let alpha = 1.0 / (1.0 + (-blend[y * lw + x]).exp());
-                let cx = x / 2;
-                let up = if bilinear {
-                    let nx = if x % 2 == 0 { cx.saturating_sub(1) } else { (cx + 1).min(cw - 1) };
-                    let row = |r: usize| 0.75 * at(r, cx) + 0.25 * at(r, nx);
-                    0.75 * row(cy) + 0.25 * row(ny)
-                } else {
-                    at(cy, cx)
-                };
-                *v += up * alpha;
-            }
+            blend_row(dst, &blend[y * lw..][..lw], coarse, (c, y), bilinear);
         });
         out = next;
     }
-    out.iter().map(|v| v.max(0.0).ln_1p()).collect()
+    out.par_chunks_mut(w).for_each(ln_1p_row);
+    out
+}
+
+multiversioned! {
+    /// Adds to `dst`, row y of channel c (`at_row`) at a level, the coarser level's `correction` (planes
+    /// of cw × ch) upsampled to it, weighted by the logistic of the row's `blend` logits.
+    fn blend_row(dst: &mut [f32], blend: &[f32], correction: (&[f32], usize, usize), at_row: (usize, usize), bilinear: bool) {
+        let (c, y) = at_row;
+        let (correction, cw, ch) = correction;
+        let at = |cy: usize| &correction[(c * ch + cy) * cw..][..cw];
+        // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
+        let (near, far) = (at(y / 2), at(if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) }));
+        for (x, (v, &b)) in dst.iter_mut().zip(blend).enumerate() {
+            // Logistic weight of the coarser level's band over this level's own.
+            let alpha = logistic(b);
+            let cx = x / 2;
+            let up = if bilinear {
+                let nx = if x % 2 == 0 { cx.saturating_sub(1) } else { (cx + 1).min(cw - 1) };
+                let row = |r: &[f32]| 0.75 * r[cx] + 0.25 * r[nx];
+                0.75 * row(near) + 0.25 * row(far)
+            } else {
+                near[cx]
+            };
+            *v += up * alpha;
+        }
+    }
 }
 
 /// The mean of each 2×2 block of three `w`×`h` planes (both sides even).
@@ -213,7 +226,7 @@ fn box_down2_planar(img: &[f32], w: usize, h: usize) -> Vec<f32> {
 /// every loop runs along the row, so the compiler vectorises it.
 fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
     let (w, h) = (logits.w, logits.h);
-    let (k2, r) = (KERNEL_SIZE * KERNEL_SIZE, KERNEL_SIZE / 2);
+    let r = KERNEL_SIZE / 2;
     // Each source row once, edge-replicated by r pixels on both sides, so a tap's shifted row
     // is a plain slice.
     let pw = w + 2 * r;
@@ -226,37 +239,8 @@ fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
     // Rows of three channels each, (y, c, x), transposed to planes below.
     let mut rows = vec![0.0; 3 * w * h];
     rows.par_chunks_mut(3 * w).enumerate().for_each_init(
-        || (vec![0.0f32; k2 * w], vec![0.0f32; w]),
-        |(taps, norm), (y, dst)| {
-            // Softmax over the taps, per pixel: exp(logit − max) / Σ.
-            let tap_row = |t: usize| &logits.data[(t * h + y) * w..][..w];
-            norm.copy_from_slice(tap_row(0));
-            for t in 1..k2 {
-                norm.iter_mut().zip(tap_row(t)).for_each(|(m, &v)| *m = m.max(v));
-            }
-            for t in 0..k2 {
-                let e = &mut taps[t * w..][..w];
-                e.iter_mut().zip(tap_row(t)).zip(norm.iter()).for_each(|((e, &v), &m)| *e = exp_nonpositive(v - m));
-            }
-            norm.fill(0.0);
-            for t in 0..k2 {
-                norm.iter_mut().zip(&taps[t * w..][..w]).for_each(|(s, &e)| *s += e);
-            }
-            norm.iter_mut().for_each(|s| *s = 1.0 / *s);
-            // Σ over taps of weight × the source row shifted by the tap, edges replicated.
-            for (c, out) in dst.chunks_exact_mut(w).enumerate() {
-                out.fill(0.0);
-                for i in 0..KERNEL_SIZE {
-                    let sy = (y + i).saturating_sub(r).min(h - 1);
-                    let src = &padded[(c * h + sy) * pw..][..pw];
-                    for j in 0..KERNEL_SIZE {
-                        let e = &taps[(i * KERNEL_SIZE + j) * w..][..w];
-                        out.iter_mut().zip(e).zip(&src[j..j + w]).for_each(|((o, &e), &v)| *o += e * v);
-                    }
-                }
-                out.iter_mut().zip(norm.iter()).for_each(|(o, &n)| *o *= n);
-            }
-        },
+        || (vec![0.0f32; KERNEL_SIZE * KERNEL_SIZE * w], vec![0.0f32; w]),
+        |(taps, norm), (y, dst)| filter_row(logits, (&padded, pw), y, (taps, norm), dst),
     );
     let mut planes = vec![0.0; 3 * w * h];
     for y in 0..h {
@@ -267,20 +251,43 @@ fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
     planes
 }
 
-/// e^x for x ≤ 0 without a library call, so loops of it vectorise: 2^n · e^f with n = round(x ·
-/// log₂e) and |f| ≤ ln2 / 2 by a degree-6 Taylor polynomial (relative error under 1e-6).
-/// Below −87 (where e^x nears f32's smallest normal) it returns 0.
-#[inline(always)]
-fn exp_nonpositive(x: f32) -> f32 {
-    debug_assert!(!(x > 0.0), "exp_nonpositive({x})");
-    if x < -87.0 {
-        return 0.0;
+multiversioned! {
+    /// Row `y` of [`filter_planar`]: the three channels' filtered rows into `dst`, from the
+    /// `padded` source planes (rows of `pw`), with `taps` (K² rows) and `norm` (one) as scratch.
+    fn filter_row(logits: &Map, padded: (&[f32], usize), y: usize, scratch: (&mut [f32], &mut [f32]), dst: &mut [f32]) {
+        let (w, h) = (logits.w, logits.h);
+        let (padded, pw) = padded;
+        let (taps, norm) = scratch;
+        let (k2, r) = (KERNEL_SIZE * KERNEL_SIZE, KERNEL_SIZE / 2);
+        // Softmax over the taps, per pixel: exp(logit − max) / Σ.
+        let tap_row = |t: usize| &logits.data[(t * h + y) * w..][..w];
+        norm.copy_from_slice(tap_row(0));
+        for t in 1..k2 {
+            norm.iter_mut().zip(tap_row(t)).for_each(|(m, &v)| *m = m.max(v));
+        }
+        for t in 0..k2 {
+            let e = &mut taps[t * w..][..w];
+            e.iter_mut().zip(tap_row(t)).zip(norm.iter()).for_each(|((e, &v), &m)| *e = exp_nonpositive(v - m));
+        }
+        norm.fill(0.0);
+        for t in 0..k2 {
+            norm.iter_mut().zip(&taps[t * w..][..w]).for_each(|(s, &e)| *s += e);
+        }
+        norm.iter_mut().for_each(|s| *s = 1.0 / *s);
+        // Σ over taps of weight × the source row shifted by the tap, edges replicated.
+        for (c, out) in dst.chunks_exact_mut(w).enumerate() {
+            out.fill(0.0);
+            for i in 0..KERNEL_SIZE {
+                let sy = (y + i).saturating_sub(r).min(h - 1);
+                let src = &padded[(c * h + sy) * pw..][..pw];
+                for j in 0..KERNEL_SIZE {
+                    let e = &taps[(i * KERNEL_SIZE + j) * w..][..w];
+                    out.iter_mut().zip(e).zip(&src[j..j + w]).for_each(|((o, &e), &v)| *o += e * v);
+                }
+            }
+            out.iter_mut().zip(norm.iter()).for_each(|(o, &n)| *o *= n);
+        }
     }
-    let n = (x * std::f32::consts::LOG2_E).round();
-    // f = x − n·ln2 in two parts, so the product's rounding does not reach f.
-    let f = (x - n * 0.693_145_75) - n * 1.428_606_8e-6;
-    let p = 1.0 + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
-    p * f32::from_bits(((n as i32 + 127) as u32) << 23)
 }
 
 #[cfg(test)]
@@ -312,20 +319,6 @@ mod tests {
                 assert_eq!(out[y * w + x], img[y * w + (x + 1).min(w - 1)], "pixel ({x}, {y})");
             }
         }
-    }
-
-    /// The vectorisable exponential agrees with the library's on the softmax's range.
-    #[test]
-    fn exp_matches_the_library_within_1e_minus_6() {
-        let mut worst = 0.0f32;
-        for i in 0..=870_000 {
-            let x = -(i as f32) * 1e-4;
-            let (a, b) = (exp_nonpositive(x), x.exp());
-            worst = worst.max((a - b).abs() / b);
-        }
-        assert!(worst < 1e-6, "{worst}");
-        assert_eq!(exp_nonpositive(-100.0), 0.0);
-        assert_eq!(exp_nonpositive(0.0), 1.0);
     }
 
     /// Bilinear upsampling is ¾ of the source pixel and ¼ of its neighbour on the output
