@@ -182,9 +182,16 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
 }
 
 multiversioned! {
-    /// Adds to `dst`, row y of channel c (`at_row`) at a level, the coarser level's `correction` (planes
-    /// of cw × ch) upsampled to it, weighted by the logistic of the row's `blend` logits.
-    fn blend_row(dst: &mut [f32], blend: &[f32], correction: (&[f32], usize, usize), at_row: (usize, usize), bilinear: bool) {
+    /// Adds to `dst`, row y of channel c (`at_row`) at a level, the coarser level's
+    /// `correction` (planes of cw × ch) upsampled to it, weighted by the logistic of the row's
+    /// `blend` logits.
+    fn blend_row(
+        dst: &mut [f32],
+        blend: &[f32],
+        correction: (&[f32], usize, usize),
+        at_row: (usize, usize),
+        bilinear: bool,
+    ) {
         let (c, y) = at_row;
         let (correction, cw, ch) = correction;
         let at = |cy: usize| &correction[(c * ch + cy) * cw..][..cw];
