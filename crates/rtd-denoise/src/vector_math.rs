@@ -50,8 +50,9 @@ pub fn exp_nonpositive(x: f32) -> f32 {
     }
 }
 
-/// e^x − 1 for x in [0, 88], relative error under 1e-6 (x is clamped to that range): the
-/// inverse of the colour transfer, once per output pixel and channel.
+/// e^x − 1 for x in [0, 88], relative error under 1e-6 (x is clamped to that range; NaN stays
+/// NaN, so callers replace it first): the inverse of the colour transfer, once per output
+/// pixel and channel.
 #[inline(always)]
 pub fn exp_m1(x: f32) -> f32 {
     let (scale, f) = reduce(x.clamp(0.0, 88.0));
