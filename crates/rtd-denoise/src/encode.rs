@@ -181,7 +181,7 @@ pub fn encode_color(x: f32, exposure: f32) -> f32 {
 }
 
 /// ln(1 + x · exposure) of an already sanitised x.
-#[inline]
+#[inline(always)]
 fn transfer(x: f32, exposure: f32) -> f32 {
     ln_1p(x * exposure)
 }
@@ -195,14 +195,14 @@ multiversioned! {
 
 multiversioned! {
     /// sum += [`decode_color`] of `encoded`, elementwise: one pass's output added to the mean.
-    pub fn add_decoded_row(sum: &mut [f32], encoded: &[f32], exposure: f32) {
+    pub(crate) fn add_decoded_row(sum: &mut [f32], encoded: &[f32], exposure: f32) {
         sum.iter_mut().zip(encoded).for_each(|(s, &y)| *s += decode_color(y, exposure));
     }
 }
 
 /// The inverse transfer: x = (e^y − 1) / exposure, for y ≥ 0.
-/// Branch-free ([`crate::vector_math::exp_m1`] and selects), so loops of it vectorise.
-#[inline]
+/// Branch-free (a polynomial exponential and selects), so loops of it vectorise.
+#[inline(always)]
 pub fn decode_color(y: f32, exposure: f32) -> f32 {
     let y = if y.is_nan() { 0.0 } else { y.min(80.0) };
     (exp_m1(y) / exposure).min(f32::MAX)

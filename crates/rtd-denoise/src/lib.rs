@@ -21,7 +21,7 @@ pub mod pooling;
 mod same_conv;
 mod tensor_ops;
 mod upsample;
-pub mod vector_math;
+mod vector_math;
 pub mod winograd;
 
 pub use encode::DenoiseInput;

@@ -10,13 +10,13 @@
 /// even), which then sits in the sum's low mantissa bits.
 const ROUNDER: f32 = 12_582_912.0;
 
-/// ln 2 in two parts, the first with a short mantissa, so n · the first is exact for |n| < 2¹⁰.
+/// ln 2 in two parts, the first with a short mantissa, so n · the first is exact for |n| < 2⁹.
 const LN2_HIGH: f32 = 0.693_145_75;
 /// The rest of ln 2 after [`LN2_HIGH`].
 const LN2_LOW: f32 = 1.428_606_8e-6;
 
-/// Splits x (in [−87.3, 88.7]) as x = n · ln 2 + f with n an integer and |f| ≤ ln 2 / 2;
-/// returns (2ⁿ, f).
+/// Splits x (in [−87.3, 88.3]; from 88.38 on, 2ⁿ overflows to infinity) as x = n · ln 2 + f
+/// with n an integer and |f| ≤ ln 2 / 2; returns (2ⁿ, f).
 #[inline(always)]
 fn reduce(x: f32) -> (f32, f32) {
     let t = x * std::f32::consts::LOG2_E + ROUNDER;
@@ -28,7 +28,7 @@ fn reduce(x: f32) -> (f32, f32) {
     (scale, (x - n * LN2_HIGH) - n * LN2_LOW)
 }
 
-/// e^f − 1 for |f| ≤ ln 2 / 2: the Taylor series to f⁷ (truncation below 6e-9 relative), with
+/// e^f − 1 for |f| ≤ ln 2 / 2: the Taylor series to f⁷ (truncation below 2e-8 relative), with
 /// no cancellation near 0.
 #[inline(always)]
 fn exp_m1_reduced(f: f32) -> f32 {
@@ -37,7 +37,8 @@ fn exp_m1_reduced(f: f32) -> f32 {
 }
 
 /// e^x for x ≤ 0, relative error under 1e-6; 0 below −87 (where e^x nears f32's smallest
-/// normal). The softmax of the kernel-predicting heads takes 25 per pixel.
+/// normal), and e^−87 for NaN, so a broken logit cannot spread NaN. The softmax of the
+/// kernel-predicting heads takes 25 per pixel.
 #[inline(always)]
 pub fn exp_nonpositive(x: f32) -> f32 {
     debug_assert!(!(x > 0.0), "exp_nonpositive({x})");
@@ -60,7 +61,8 @@ pub fn exp_m1(x: f32) -> f32 {
     scale * exp_m1_reduced(f) + (scale - 1.0)
 }
 
-/// The logistic function 1 / (1 + e^−x), through e^−|x| ≤ 1 so nothing overflows.
+/// The logistic function 1 / (1 + e^−x), through e^−|x| ≤ 1 so nothing overflows; NaN gives
+/// about 0.
 #[inline(always)]
 pub fn logistic(x: f32) -> f32 {
     let e = exp_nonpositive(-x.abs());
@@ -91,7 +93,8 @@ pub fn ln_1p(x: f32) -> f32 {
     e * std::f32::consts::LN_2 + s * series
 }
 
-/// Defines a function whose body is compiled twice, for the baseline (SSE4.2) and with AVX2,
+/// Defines a function whose body is compiled twice, for the build's baseline (SSE4.2 with the
+/// repository's `.cargo/config.toml`) and with AVX2,
 /// and runs the AVX2 build where this CPU has it, so the loops of [`exp_m1`] and the like in it
 /// run eight lanes wide. No fused multiply-add is enabled, so both builds give the same bits.
 /// The body is a function of its own rather than a closure because only an
@@ -126,10 +129,10 @@ multiversioned! {
 }
 
 multiversioned! {
-    /// dst = e^min(src, top) − 1, elementwise, clamped below at 0: the colour transfer undone
-    /// for a row.
+    /// dst = e^min(src, top) − 1, elementwise, clamped below at 0 (NaN counts as 0): the
+    /// colour transfer undone for a row.
     pub fn exp_m1_row(dst: &mut [f32], src: &[f32], top: f32) {
-        dst.iter_mut().zip(src).for_each(|(v, &y)| *v = exp_m1(y.min(top)));
+        dst.iter_mut().zip(src).for_each(|(v, &y)| *v = exp_m1(if y.is_nan() { 0.0 } else { y.min(top) }));
     }
 }
 
@@ -151,6 +154,7 @@ mod tests {
         assert_eq!(exp_nonpositive(-100.0), 0.0);
         assert_eq!(exp_nonpositive(f32::NEG_INFINITY), 0.0);
         assert_eq!(exp_nonpositive(0.0), 1.0);
+        assert!(exp_nonpositive(f32::NAN).is_finite());
     }
 
     #[test]
@@ -175,6 +179,7 @@ mod tests {
         assert_eq!(logistic(0.0), 0.5);
         assert_eq!(logistic(f32::INFINITY), 1.0);
         assert_eq!(logistic(f32::NEG_INFINITY), 0.0);
+        assert!(logistic(f32::NAN).is_finite());
     }
 
     #[test]
@@ -197,5 +202,13 @@ mod tests {
             assert_eq!(logs[i].to_bits(), ln_1p(x).to_bits(), "ln_1p at {x}");
             assert_eq!(exps[i].to_bits(), exp_m1(x.min(60.0)).to_bits(), "exp_m1 at {x}");
         }
+        // Nothing non-finite comes out of a row with NaN and infinities in it.
+        let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0];
+        let mut logs = bad;
+        ln_1p_row(&mut logs);
+        let mut exps = [1.0; 4];
+        exp_m1_row(&mut exps, &bad, 60.0);
+        assert!(logs.iter().chain(&exps).all(|v| v.is_finite()), "{logs:?} {exps:?}");
+        assert_eq!(exps[0], 0.0, "NaN counts as 0");
     }
 }
