@@ -23,6 +23,7 @@ import pyoidn
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import blender_roundtrip as rt  # noqa: E402
+from error_by_scale import edges  # noqa: E402
 import bpy  # noqa: E402
 
 
@@ -100,29 +101,12 @@ def main():
         json.dump(row, f, indent=1)
 
 
-def edges(albedo, normal, radius=2):
-    """Pixels within `radius` of a step of more than 0.1 in albedo or 0.3 in normal between
-    neighbours."""
-    step = np.zeros(albedo.shape[:2], bool)
-    for img, t in ((albedo, 0.1), (normal, 0.3)):
-        dy, dx = np.abs(np.diff(img, axis=0)).sum(-1) > t, np.abs(np.diff(img, axis=1)).sum(-1) > t
-        step[:-1] |= dy
-        step[1:] |= dy
-        step[:, :-1] |= dx
-        step[:, 1:] |= dx
-    near = step.copy()
-    for oy in range(-radius, radius + 1):
-        for ox in range(-radius, radius + 1):
-            near |= np.roll(np.roll(step, oy, 0), ox, 1)
-    return near
-
-
 def excess_by_region(rtd_img, oidn_img, reference, albedo, normal):
     """rtd's squared display error over OIDN's, split between detail and flat pixels."""
     err = lambda x: ((srgb(x) - srgb(reference)) ** 2).mean(-1)
     e_rtd, e_oidn = err(rtd_img), err(oidn_img)
     excess = e_rtd - e_oidn
-    detail = edges(albedo, normal)
+    detail = edges(albedo, normal, radius=2)
     row = {"detail_area": float(detail.mean())}
     for name, m in (("detail", detail), ("flat", ~detail)):
         row[f"{name}_share_of_excess"] = float(excess[m].sum() / excess.sum())
