@@ -23,7 +23,7 @@ import pyoidn
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import blender_roundtrip as rt  # noqa: E402
-from error_by_scale import edges  # noqa: E402
+from error_by_scale import display as srgb, edges  # noqa: E402
 import bpy  # noqa: E402
 
 
@@ -35,11 +35,6 @@ def channels(path):
 
 def rgb(ch, prefix, names="RGB"):
     return np.stack([ch[f"{prefix}.{n}"] for n in names], axis=-1).astype(np.float32)
-
-
-def srgb(x):
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
 def psnr(a, b):
