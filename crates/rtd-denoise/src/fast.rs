@@ -520,9 +520,9 @@ impl FastNet {
         }
         logits.push(out);
         logits.reverse();
-        let data = crate::kernel_output::apply_planar(&x.data, x.w, x.h, &logits, self.bilinear);
+        let out = crate::kernel_output::apply_planar(&x.data, x.w, x.h, &logits, self.bilinear, scratch);
         logits.into_iter().for_each(|m| scratch.recycle(m));
-        Map { w: x.w, h: x.h, c: 3, data }
+        out
     }
 }
 

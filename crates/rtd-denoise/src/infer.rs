@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use rtd_image::HdrImage;
 
 use crate::encode::{add_decoded_row, demod_albedo, demod_factor, DenoiseInput};
-use crate::fast::{FastNet, Scratch};
+use crate::fast::{FastNet, Map, Scratch};
 use crate::model::{DenoiserConfig, DenoiserNet};
 use crate::plane_encoder::{PlaneEncoder, PlaneSource};
 use crate::planes::{is_supported_width, LEGACY_INPUT_CHANNELS};
@@ -293,12 +293,13 @@ impl Denoiser {
                 let (ox, oy) = ((tx as i64 - x0) as usize, (ty as i64 - y0) as usize);
                 for c in 0..3 {
                     for y in ty..(ty + th).min(h) {
-                        let src = &tile[c * iw * ih + (y - ty + oy) * iw + ox..][..(tx + tw).min(w) - tx];
+                        let src = &tile.data[c * iw * ih + (y - ty + oy) * iw + ox..][..(tx + tw).min(w) - tx];
                         for (i, v) in src.iter().enumerate() {
                             out[c * w * h + t.source(tx + i, y, ow, oh)] = *v;
                         }
                     }
                 }
+                scratch.recycle(tile);
             }
         }
         out
@@ -306,7 +307,7 @@ impl Denoiser {
 
     /// One window `(x0, y0, tw, th)`: `tw`×`th` pixels whose top-left is (x0, y0) in the coordinates of the
     /// `size` image transformed by `t` (pixels outside it repeat the nearest edge pixel).
-    /// Returns 3 × th × tw encoded colour.
+    /// Returns 3 × th × tw encoded colour, in a map the caller gives back to `scratch`.
     fn run_tile(
         &self,
         source: PlaneSource,
@@ -314,7 +315,7 @@ impl Denoiser {
         t: Dihedral,
         (x0, y0, tw, th): (i64, i64, usize, usize),
         scratch: &mut Scratch,
-    ) -> Vec<f32> {
+    ) -> Map {
         let (ow, oh) = size;
         let (w, h) = t.size(ow, oh);
         let src = |x: usize, y: usize| {
@@ -339,10 +340,11 @@ impl Denoiser {
         if self.use_burn {
             let input = Tensor::<4>::from_data(TensorData::new(x.data, [1, c, th, tw]), &self.device);
             let y = self.net.forward(input); // [1, 3, th, tw]
-            return y.into_data().try_into_vec::<f32>().expect("the network outputs f32");
+            let data = y.into_data().try_into_vec::<f32>().expect("the network outputs f32");
+            return Map { w: tw, h: th, c: 3, data };
         }
         let y = self.fast.forward(&x, scratch);
         scratch.recycle(x);
-        y.data
+        y
     }
 }

@@ -11,7 +11,7 @@ use burn::tensor::activation::{sigmoid, softmax};
 use burn::tensor::{Device, Tensor};
 use rayon::prelude::*;
 
-use crate::feature_map::Map;
+use crate::feature_map::{Map, Scratch};
 use crate::tensor_ops::conv1x1;
 use crate::upsample::upsample2;
 use crate::vector_math::{exp_m1_row, exp_nonpositive, ln_1p_row, logistic, multiversioned};
@@ -149,35 +149,41 @@ fn apply_kernels(x: Tensor<4>, weights: Tensor<4>) -> Tensor<4> {
 /// The fast path's [`KernelOutput::forward`] on planar maps: `noisy` holds the three encoded
 /// colour planes of a `w`×`h` image, and `logits[l]` the heads' outputs at level l (K² kernel
 /// logits, then the blend logit at every level but the coarsest). `bilinear` chooses the
-/// blend's upsampling, as [`KernelOutput`]'s field does. Returns the three encoded output planes.
-pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear: bool) -> Vec<f32> {
+/// blend's upsampling, as [`KernelOutput`]'s field does. Returns the three encoded output
+/// planes; every buffer, the result's included, comes from `scratch`, so repeated calls touch
+/// no fresh memory.
+pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear: bool, scratch: &mut Scratch) -> Map {
     let top = crate::encode::MAX_EXPOSED.ln_1p();
-    let mut level = vec![0.0; 3 * w * h];
-    level.par_chunks_mut(w).zip(noisy[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| exp_m1_row(dst, src, top));
+    let mut level = scratch.map(w, h, 3);
+    level.data.par_chunks_mut(w).zip(noisy[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| exp_m1_row(dst, src, top));
     let mut filtered = Vec::with_capacity(logits.len());
     for (l, lg) in logits.iter().enumerate() {
         if l > 0 {
-            level = box_down2_planar(&level, w >> (l - 1), h >> (l - 1));
+            let down = box_down2_planar(&level, scratch);
+            scratch.recycle(std::mem::replace(&mut level, down));
         }
-        filtered.push(filter_planar(&level, lg));
+        filtered.push(filter_planar(&level, lg, scratch));
     }
+    scratch.recycle(level);
     // Coarse to fine, as the burn version blends.
     let mut out = filtered.pop().expect("at least one level");
-    for (l, fine) in filtered.into_iter().enumerate().rev() {
-        let (lw, lh) = (w >> l, h >> l);
-        let low = box_down2_planar(&fine, lw, lh);
+    for (l, mut fine) in filtered.into_iter().enumerate().rev() {
+        let (lw, lh) = (fine.w, fine.h);
         let blend = &logits[l].data[KERNEL_SIZE * KERNEL_SIZE * lw * lh..][..lw * lh];
         // The coarser result's difference from this level's own low band, once per coarse pixel.
-        let correction: Vec<f32> = out.iter().zip(&low).map(|(o, l)| o - l).collect();
-        let mut next = fine;
-        let coarse = (&correction[..], lw / 2, lh / 2);
-        next.par_chunks_mut(lw).enumerate().for_each(|(row, dst)| {
+        let mut correction = box_down2_planar(&fine, scratch);
+        correction.data.par_chunks_mut(lw / 2).zip(out.data.par_chunks(lw / 2)).for_each(|(low, o)| {
+            low.iter_mut().zip(o).for_each(|(l, o)| *l = o - *l);
+        });
+        let coarse = (&correction.data[..], lw / 2, lh / 2);
+        fine.data.par_chunks_mut(lw).enumerate().for_each(|(row, dst)| {
             let (c, y) = (row / lh, row % lh);
             blend_row(dst, &blend[y * lw..][..lw], coarse, (c, y), bilinear);
         });
-        out = next;
+        scratch.recycle(correction);
+        scratch.recycle(std::mem::replace(&mut out, fine));
     }
-    out.par_chunks_mut(w).for_each(ln_1p_row);
+    out.data.par_chunks_mut(w).for_each(ln_1p_row);
     out
 }
 
@@ -213,14 +219,16 @@ multiversioned! {
     }
 }
 
-/// The mean of each 2×2 block of three `w`×`h` planes (both sides even).
-fn box_down2_planar(img: &[f32], w: usize, h: usize) -> Vec<f32> {
+/// The mean of each 2×2 block of the three planes of `img` (both sides even), in a map from
+/// `scratch`.
+fn box_down2_planar(img: &Map, scratch: &mut Scratch) -> Map {
+    let (w, h) = (img.w, img.h);
     let (hw, hh) = (w / 2, h / 2);
-    let mut out = vec![0.0; 3 * hw * hh];
-    out.par_chunks_mut(hw).enumerate().for_each(|(row, dst)| {
+    let mut out = scratch.map(hw, hh, 3);
+    out.data.par_chunks_mut(hw).enumerate().for_each(|(row, dst)| {
         let (c, y) = (row / hh, row % hh);
-        let upper = &img[(c * h + 2 * y) * w..][..w];
-        let lower = &img[(c * h + 2 * y + 1) * w..][..w];
+        let upper = &img.data[(c * h + 2 * y) * w..][..w];
+        let lower = &img.data[(c * h + 2 * y + 1) * w..][..w];
         for (i, v) in dst.iter_mut().enumerate() {
             *v = ((upper[2 * i] + upper[2 * i + 1]) * 0.5 + (lower[2 * i] + lower[2 * i + 1]) * 0.5) * 0.5;
         }
@@ -229,39 +237,43 @@ fn box_down2_planar(img: &[f32], w: usize, h: usize) -> Vec<f32> {
 }
 
 /// Each pixel's softmax-normalised K×K kernel (from the first K² planes of `logits`) applied
-/// to the three planes of `img`, which has the logits' size, with edges replicated. Row by row,
-/// every loop runs along the row, so the compiler vectorises it.
-fn filter_planar(img: &[f32], logits: &Map) -> Vec<f32> {
+/// to the three planes of `img`, which has the logits' size, with edges replicated; into a map
+/// from `scratch`. Row by row, every loop runs along the row, so the compiler vectorises it.
+fn filter_planar(img: &Map, logits: &Map, scratch: &mut Scratch) -> Map {
     let (w, h) = (logits.w, logits.h);
     let r = KERNEL_SIZE / 2;
     // Each source row once, edge-replicated by r pixels on both sides, so a tap's shifted row
     // is a plain slice.
     let pw = w + 2 * r;
-    let mut padded = vec![0.0f32; 3 * h * pw];
-    for (src, dst) in img[..3 * w * h].chunks_exact(w).zip(padded.chunks_exact_mut(pw)) {
+    let mut padded = scratch.map(pw, h, 3);
+    padded.data.par_chunks_mut(pw).zip(img.data[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| {
         dst[..r].fill(src[0]);
         dst[r..r + w].copy_from_slice(src);
         dst[r + w..].fill(src[w - 1]);
-    }
-    // Rows of three channels each, (y, c, x), transposed to planes below.
-    let mut rows = vec![0.0; 3 * w * h];
-    rows.par_chunks_mut(3 * w).enumerate().for_each_init(
+    });
+    // Row y of each of the three output planes, filled together from one softmax.
+    let mut out = scratch.map(w, h, 3);
+    let (red, rest) = out.data.split_at_mut(w * h);
+    let (green, blue) = rest.split_at_mut(w * h);
+    let rows = red.par_chunks_mut(w).zip(green.par_chunks_mut(w)).zip(blue.par_chunks_mut(w));
+    rows.enumerate().for_each_init(
         || (vec![0.0f32; KERNEL_SIZE * KERNEL_SIZE * w], vec![0.0f32; w]),
-        |(taps, norm), (y, dst)| filter_row(logits, (&padded, pw), y, (taps, norm), dst),
+        |(taps, norm), (y, ((r, g), b))| filter_row(logits, (&padded.data, pw), y, (taps, norm), [r, g, b]),
     );
-    let mut planes = vec![0.0; 3 * w * h];
-    for y in 0..h {
-        for c in 0..3 {
-            planes[(c * h + y) * w..][..w].copy_from_slice(&rows[(y * 3 + c) * w..][..w]);
-        }
-    }
-    planes
+    scratch.recycle(padded);
+    out
 }
 
 multiversioned! {
     /// Row `y` of [`filter_planar`]: the three channels' filtered rows into `dst`, from the
     /// `padded` source planes (rows of `pw`), with `taps` (K² rows) and `norm` (one) as scratch.
-    fn filter_row(logits: &Map, padded: (&[f32], usize), y: usize, scratch: (&mut [f32], &mut [f32]), dst: &mut [f32]) {
+    fn filter_row(
+        logits: &Map,
+        padded: (&[f32], usize),
+        y: usize,
+        scratch: (&mut [f32], &mut [f32]),
+        dst: [&mut [f32]; 3],
+    ) {
         let (w, h) = (logits.w, logits.h);
         let (padded, pw) = padded;
         let (taps, norm) = scratch;
@@ -282,7 +294,7 @@ multiversioned! {
         }
         norm.iter_mut().for_each(|s| *s = 1.0 / *s);
         // Σ over taps of weight × the source row shifted by the tap, edges replicated.
-        for (c, out) in dst.chunks_exact_mut(w).enumerate() {
+        for (c, out) in dst.into_iter().enumerate() {
             out.fill(0.0);
             for i in 0..KERNEL_SIZE {
                 let sy = (y + i).saturating_sub(r).min(h - 1);
