@@ -176,10 +176,13 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
             low.iter_mut().zip(o).for_each(|(l, o)| *l = o - *l);
         });
         let coarse = (&correction.data[..], lw / 2, lh / 2);
-        fine.data.par_chunks_mut(lw).enumerate().for_each(|(row, dst)| {
-            let (c, y) = (row / lh, row % lh);
-            blend_row(dst, &blend[y * lw..][..lw], coarse, (c, y), bilinear);
-        });
+        let (red, rest) = fine.data.split_at_mut(lw * lh);
+        let (green, blue) = rest.split_at_mut(lw * lh);
+        let rows = red.par_chunks_mut(lw).zip(green.par_chunks_mut(lw)).zip(blue.par_chunks_mut(lw));
+        rows.enumerate().for_each_init(
+            || (vec![0.0f32; lw], vec![0.0f32; lw], vec![0.0f32; lw]),
+            |rows, (y, ((r, g), b))| blend_row([r, g, b], &blend[y * lw..][..lw], coarse, y, bilinear, rows),
+        );
         scratch.recycle(correction);
         scratch.recycle(std::mem::replace(&mut out, fine));
     }
@@ -188,34 +191,47 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
 }
 
 multiversioned! {
-    /// Adds to `dst`, row y of channel c (`at_row`) at a level, the coarser level's
-    /// `correction` (planes of cw × ch) upsampled to it, weighted by the logistic of the row's
-    /// `blend` logits.
+    /// Adds to `dst`, row y of the three channels at a level, the coarser level's `correction`
+    /// (three planes of cw × ch) upsampled to it, weighted by the logistic of the row's `blend`
+    /// logits. `scratch` holds three rows: the weights, and the near and far coarse rows
+    /// upsampled along x.
     fn blend_row(
-        dst: &mut [f32],
+        dst: [&mut [f32]; 3],
         blend: &[f32],
         correction: (&[f32], usize, usize),
-        at_row: (usize, usize),
+        y: usize,
         bilinear: bool,
+        scratch: &mut (Vec<f32>, Vec<f32>, Vec<f32>),
     ) {
-        let (c, y) = at_row;
         let (correction, cw, ch) = correction;
-        let at = |cy: usize| &correction[(c * ch + cy) * cw..][..cw];
+        let (alpha, near_x, far_x) = scratch;
+        // Logistic weight of the coarser level's band over this level's own, once per pixel.
+        alpha.iter_mut().zip(blend).for_each(|(a, &b)| *a = logistic(b));
         // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
-        let (near, far) = (at(y / 2), at(if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) }));
-        for (x, (v, &b)) in dst.iter_mut().zip(blend).enumerate() {
-            // Logistic weight of the coarser level's band over this level's own.
-            let alpha = logistic(b);
-            let cx = x / 2;
-            let up = if bilinear {
-                let nx = if x % 2 == 0 { cx.saturating_sub(1) } else { (cx + 1).min(cw - 1) };
-                let row = |r: &[f32]| 0.75 * r[cx] + 0.25 * r[nx];
-                0.75 * row(near) + 0.25 * row(far)
-            } else {
-                near[cx]
-            };
-            *v += up * alpha;
+        let far_y = if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) };
+        for (c, out) in dst.into_iter().enumerate() {
+            let at = |cy: usize| &correction[(c * ch + cy) * cw..][..cw];
+            let near = at(y / 2);
+            if !bilinear {
+                out.iter_mut().zip(alpha.iter()).enumerate().for_each(|(x, (v, &a))| *v += near[x / 2] * a);
+                continue;
+            }
+            upsample_row(near, near_x);
+            upsample_row(at(far_y), far_x);
+            for ((v, &a), (&n, &f)) in out.iter_mut().zip(alpha.iter()).zip(near_x.iter().zip(far_x.iter())) {
+                *v += (0.75 * n + 0.25 * f) * a;
+            }
         }
+    }
+}
+
+/// A coarse row doubled along x by the bilinear tent: each output pixel is ¾ of its source
+/// pixel and ¼ of the neighbour on its side, the ends clamped.
+fn upsample_row(src: &[f32], dst: &mut [f32]) {
+    let last = src.len() - 1;
+    for (cx, pair) in dst.chunks_exact_mut(2).enumerate() {
+        pair[0] = 0.75 * src[cx] + 0.25 * src[cx.saturating_sub(1)];
+        pair[1] = 0.75 * src[cx] + 0.25 * src[(cx + 1).min(last)];
     }
 }
 
