@@ -289,16 +289,16 @@ impl Denoiser {
                 let (x1, y1) = (((tx + tw) as i64 + m).min(wp as i64 + p), ((ty + th) as i64 + m).min(hp as i64 + p));
                 let (iw, ih) = ((x1 - x0) as usize, (y1 - y0) as usize);
                 let tile = self.run_tile(source, (ow, oh), t, (x0, y0, iw, ih), scratch);
-                // Keep the tile's interior, each pixel where it came from.
+                // Keep the tile's interior, each pixel where it came from (a plane per task).
                 let (ox, oy) = ((tx as i64 - x0) as usize, (ty as i64 - y0) as usize);
-                for c in 0..3 {
+                out.par_chunks_mut(w * h).enumerate().for_each(|(c, plane)| {
                     for y in ty..(ty + th).min(h) {
                         let src = &tile.data[c * iw * ih + (y - ty + oy) * iw + ox..][..(tx + tw).min(w) - tx];
                         for (i, v) in src.iter().enumerate() {
-                            out[c * w * h + t.source(tx + i, y, ow, oh)] = *v;
+                            plane[t.source(tx + i, y, ow, oh)] = *v;
                         }
                     }
-                }
+                });
                 scratch.recycle(tile);
             }
         }
