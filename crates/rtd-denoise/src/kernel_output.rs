@@ -208,7 +208,7 @@ multiversioned! {
         // Logistic weight of the coarser level's band over this level's own, once per pixel.
         alpha.iter_mut().zip(blend).for_each(|(a, &b)| *a = logistic(b));
         // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
-        let far_y = if y % 2 == 0 { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) };
+        let far_y = if y.is_multiple_of(2) { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) };
         for (c, out) in dst.into_iter().enumerate() {
             let at = |cy: usize| &correction[(c * ch + cy) * cw..][..cw];
             let near = at(y / 2);
