@@ -150,8 +150,8 @@ fn apply_kernels(x: Tensor<4>, weights: Tensor<4>) -> Tensor<4> {
 /// colour planes of a `w`×`h` image, and `logits[l]` the heads' outputs at level l (K² kernel
 /// logits, then the blend logit at every level but the coarsest). `bilinear` chooses the
 /// blend's upsampling, as [`KernelOutput`]'s field does. Returns the three encoded output
-/// planes; every buffer, the result's included, comes from `scratch`, so repeated calls touch
-/// no fresh memory.
+/// planes; every image-sized buffer, the result's included, comes from `scratch`, so repeated
+/// calls touch no fresh memory (only the row-sized scratch of each task is allocated anew).
 pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear: bool, scratch: &mut Scratch) -> Map {
     let top = crate::encode::MAX_EXPOSED.ln_1p();
     let mut level = scratch.map(w, h, 3);
