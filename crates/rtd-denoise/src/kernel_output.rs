@@ -175,15 +175,15 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
         correction.data.par_chunks_mut(lw / 2).zip(out.data.par_chunks(lw / 2)).for_each(|(low, o)| {
             low.iter_mut().zip(o).for_each(|(l, o)| *l = o - *l);
         });
-        let coarse = (&correction.data[..], lw / 2, lh / 2);
-        let (red, rest) = fine.data.split_at_mut(lw * lh);
-        let (green, blue) = rest.split_at_mut(lw * lh);
-        let rows = red.par_chunks_mut(lw).zip(green.par_chunks_mut(lw)).zip(blue.par_chunks_mut(lw));
-        rows.enumerate().for_each_init(
-            || (vec![0.0f32; lw], vec![0.0f32; lw], vec![0.0f32; lw]),
-            |rows, (y, ((r, g), b))| blend_row([r, g, b], &blend[y * lw..][..lw], coarse, y, bilinear, rows),
-        );
+        // Its rows doubled along x once, for the two output rows that read each.
+        let wide = widen_rows(&correction, bilinear, scratch);
         scratch.recycle(correction);
+        let coarse = (&wide.data[..], wide.w, wide.h);
+        rgb_rows(&mut fine.data, lw, lh).enumerate().for_each_init(
+            || vec![0.0f32; lw],
+            |alpha, (y, dst)| blend_row(dst, &blend[y * lw..][..lw], coarse, y, bilinear, alpha),
+        );
+        scratch.recycle(wide);
         scratch.recycle(std::mem::replace(&mut out, fine));
     }
     out.data.par_chunks_mut(w).for_each(ln_1p_row);
@@ -191,48 +191,61 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
 }
 
 multiversioned! {
-    /// Adds to `dst`, row y of the three channels at a level, the coarser level's `correction`
-    /// (three planes of cw × ch) upsampled to it, weighted by the logistic of the row's `blend`
-    /// logits. `scratch` holds three rows: the weights, and the near and far coarse rows
-    /// upsampled along x.
+    /// Adds to `dst`, row y of the three channels at a level, the coarser level's correction
+    /// upsampled to it, weighted by the logistic of the row's `blend` logits. `wide` holds the
+    /// correction's rows already doubled along x by [`widen_rows`] (three planes of w × ch);
+    /// `alpha` is a row of scratch for the weights.
     fn blend_row(
         dst: [&mut [f32]; 3],
         blend: &[f32],
-        correction: (&[f32], usize, usize),
+        wide: (&[f32], usize, usize),
         y: usize,
         bilinear: bool,
-        scratch: &mut (Vec<f32>, Vec<f32>, Vec<f32>),
+        alpha: &mut [f32],
     ) {
-        let (correction, cw, ch) = correction;
-        let (alpha, near_x, far_x) = scratch;
+        let (wide, w, ch) = wide;
         // Logistic weight of the coarser level's band over this level's own, once per pixel.
         alpha.iter_mut().zip(blend).for_each(|(a, &b)| *a = logistic(b));
         // Bilinear: ¾ of the source row and ¼ of the neighbouring one on this row's side.
         let far_y = if y.is_multiple_of(2) { (y / 2).saturating_sub(1) } else { (y / 2 + 1).min(ch - 1) };
         for (c, out) in dst.into_iter().enumerate() {
-            let at = |cy: usize| &correction[(c * ch + cy) * cw..][..cw];
-            let near = at(y / 2);
-            if !bilinear {
-                out.iter_mut().zip(alpha.iter()).enumerate().for_each(|(x, (v, &a))| *v += near[x / 2] * a);
-                continue;
-            }
-            upsample_row(near, near_x);
-            upsample_row(at(far_y), far_x);
-            for ((v, &a), (&n, &f)) in out.iter_mut().zip(alpha.iter()).zip(near_x.iter().zip(far_x.iter())) {
-                *v += (0.75 * n + 0.25 * f) * a;
+            let at = |cy: usize| &wide[(c * ch + cy) * w..][..w];
+            let (near, far) = (at(y / 2), at(far_y));
+            if bilinear {
+                for ((v, &a), (&n, &f)) in out.iter_mut().zip(alpha.iter()).zip(near.iter().zip(far)) {
+                    *v += (0.75 * n + 0.25 * f) * a;
+                }
+            } else {
+                out.iter_mut().zip(alpha.iter()).zip(near).for_each(|((v, &a), &n)| *v += n * a);
             }
         }
     }
 }
 
-/// A coarse row doubled along x by the bilinear tent: each output pixel is ¾ of its source
-/// pixel and ¼ of the neighbour on its side, the ends clamped.
-fn upsample_row(src: &[f32], dst: &mut [f32]) {
-    let last = src.len() - 1;
-    for (cx, pair) in dst.chunks_exact_mut(2).enumerate() {
-        pair[0] = 0.75 * src[cx] + 0.25 * src[cx.saturating_sub(1)];
-        pair[1] = 0.75 * src[cx] + 0.25 * src[(cx + 1).min(last)];
-    }
+/// The three planes of `coarse` with every row doubled along x, into a map from `scratch`: by
+/// the bilinear tent if `bilinear` (each output pixel ¾ of its source pixel and ¼ of the
+/// neighbour on its side, the ends clamped), else by repeating each pixel.
+fn widen_rows(coarse: &Map, bilinear: bool, scratch: &mut Scratch) -> Map {
+    let mut wide = scratch.map(2 * coarse.w, coarse.h, 3);
+    wide.data.par_chunks_mut(2 * coarse.w).zip(coarse.data.par_chunks(coarse.w)).for_each(|(dst, src)| {
+        let last = src.len() - 1;
+        for (cx, pair) in dst.chunks_exact_mut(2).enumerate() {
+            if bilinear {
+                pair[0] = 0.75 * src[cx] + 0.25 * src[cx.saturating_sub(1)];
+                pair[1] = 0.75 * src[cx] + 0.25 * src[(cx + 1).min(last)];
+            } else {
+                pair.fill(src[cx]);
+            }
+        }
+    });
+    wide
+}
+
+/// Row y of each of three w × h planes, together: `[red, green, blue]` per item, in parallel.
+fn rgb_rows(planes: &mut [f32], w: usize, h: usize) -> impl IndexedParallelIterator<Item = [&mut [f32]; 3]> {
+    let (red, rest) = planes[..3 * w * h].split_at_mut(w * h);
+    let (green, blue) = rest.split_at_mut(w * h);
+    red.par_chunks_mut(w).zip(green.par_chunks_mut(w)).zip(blue.par_chunks_mut(w)).map(|((r, g), b)| [r, g, b])
 }
 
 /// The mean of each 2×2 block of the three planes of `img` (both sides even), in a map from
@@ -269,12 +282,9 @@ fn filter_planar(img: &Map, logits: &Map, scratch: &mut Scratch) -> Map {
     });
     // Row y of each of the three output planes, filled together from one softmax.
     let mut out = scratch.map(w, h, 3);
-    let (red, rest) = out.data.split_at_mut(w * h);
-    let (green, blue) = rest.split_at_mut(w * h);
-    let rows = red.par_chunks_mut(w).zip(green.par_chunks_mut(w)).zip(blue.par_chunks_mut(w));
-    rows.enumerate().for_each_init(
+    rgb_rows(&mut out.data, w, h).enumerate().for_each_init(
         || (vec![0.0f32; KERNEL_SIZE * KERNEL_SIZE * w], vec![0.0f32; w]),
-        |(taps, norm), (y, ((r, g), b))| filter_row(logits, (&padded.data, pw), y, (taps, norm), [r, g, b]),
+        |(taps, norm), (y, dst)| filter_row(logits, (&padded.data, pw), y, (taps, norm), dst),
     );
     scratch.recycle(padded);
     out
