@@ -466,5 +466,8 @@ fn validation_saves_rtd_outputs_that_score_as_reported() {
         assert!(psnr(Method::AllGuides).is_finite());
         assert_eq!(psnr(saved()), psnr(Method::AllGuides), "{}", v.view);
         assert_ne!(psnr(saved()), psnr(Method::Noisy), "{}", v.view);
+        // OIDN's inputs (no guide, AO, depth or variance) are another input, with its own result.
+        assert!(psnr(Method::AlbedoNormal).is_finite());
+        assert_ne!(psnr(Method::AlbedoNormal), psnr(Method::AllGuides), "{}", v.view);
     }
 }

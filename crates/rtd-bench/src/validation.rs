@@ -1,6 +1,6 @@
 //! Validation report: on the held-out views of a dataset, compares the noisy input, the
 //! denoiser with all of rtd's guide layers, the denoiser with only the guide RGB (the mode for
-//! other software), the thesis's §6.4 ablation (the noisy image given as the guide), the
+//! other software), the denoiser with colour, albedo and normal only (OIDN's inputs), the thesis's §6.4 ablation (the noisy image given as the guide), the
 //! non-learned guided filter (its parameters chosen by grid search on the training views), and
 //! optionally external results such as Intel OIDN's, all with the same metric code.
 
@@ -26,6 +26,9 @@ pub enum Method {
     AllGuides,
     /// rtd's denoiser with only the guide RGB (the mode for other software's renders).
     GuideRgbOnly,
+    /// rtd's denoiser with colour, albedo and normal only, the albedo standing in for the
+    /// guide: what OIDN is given, and what files from Blender or Nuke hold.
+    AlbedoNormal,
     /// The thesis's §6.4 ablation: the noisy image given as the guide.
     NoisyAsGuide,
     /// The non-learned guided filter, tuned on the training views.
@@ -41,6 +44,7 @@ impl Method {
             Method::Noisy => "noisy",
             Method::AllGuides => "rtd (all guides)",
             Method::GuideRgbOnly => "rtd (guide RGB only)",
+            Method::AlbedoNormal => "rtd (albedo + normal, as OIDN)",
             Method::NoisyAsGuide => "ablation: noisy as guide",
             Method::GuidedFilter => "guided filter",
             Method::External(name) => name,
@@ -143,6 +147,7 @@ pub fn validation_report(
         let color = input.color;
         let guide_only = DenoiseInput::new(color, &v.guide);
         let ablation = DenoiseInput::new(color, color);
+        let as_oidn = DenoiseInput::new(color, &v.albedo).albedo_normal(&v.albedo, &v.normal);
         let denoised = model.denoise(&input)?;
         let stem = Path::new(&v.record.file).file_stem().and_then(|s| s.to_str()).unwrap_or_default().to_string();
         if let Some(dir) = save {
@@ -154,6 +159,7 @@ pub fn validation_report(
             (Method::Noisy, color.clone()),
             (Method::AllGuides, denoised),
             (Method::GuideRgbOnly, model.denoise(&guide_only)?),
+            (Method::AlbedoNormal, model.denoise(&as_oidn)?),
             (Method::NoisyAsGuide, model.denoise(&ablation)?),
             (Method::GuidedFilter, filter.filter(&input)?),
         ];

@@ -169,6 +169,9 @@ pub struct CropSampler {
     /// Probability that a crop is colour alone: its guide is the noisy colour, and it has no
     /// albedo, normal, AO or depth.
     pub colour_only_probability: f32,
+    /// Probability that a crop with albedo but without AO + depth takes its albedo as its
+    /// guide RGB, as `rtd denoise` does for files from other software that have no guide.
+    pub albedo_guide_probability: f32,
     /// Input planes per crop: the model's width.
     channels: usize,
 }
@@ -231,6 +234,7 @@ impl CropSampler {
             drop_probability: DROP_PROBABILITY,
             variance_drop_probability: DROP_PROBABILITY,
             colour_only_probability: 0.0,
+            albedo_guide_probability: 0.0,
             channels,
         })
     }
@@ -238,6 +242,13 @@ impl CropSampler {
     /// Sets the probability that a crop is colour alone.
     pub fn colour_only_probability(mut self, p: f32) -> Self {
         self.colour_only_probability = p;
+        self
+    }
+
+    /// Sets the probability that a crop with albedo but without AO + depth takes its albedo as
+    /// its guide.
+    pub fn albedo_guide_probability(mut self, p: f32) -> Self {
+        self.albedo_guide_probability = p;
         self
     }
 
@@ -273,6 +284,11 @@ impl CropSampler {
             let (drop_an, drop_ad) = (drop_an || colour_only, drop_ad || colour_only);
             let drop_var = rng.random::<f32>() < self.variance_drop_probability;
             let black = rng.random::<f32>() < 0.02;
+            // (Drawn last, and not at probability 0, so older runs see the batches they saw.)
+            let albedo_guide = self.albedo_guide_probability > 0.0
+                && rng.random::<f32>() < self.albedo_guide_probability
+                && drop_ad
+                && !drop_an;
             // Source pixel of crop pixel (x, y) after the flips and transpose.
             let src = |x: usize, y: usize| {
                 let (mut u, mut v) = if transpose { (y, x) } else { (x, y) };
@@ -300,6 +316,7 @@ impl CropSampler {
                 // Without albedo, colour and deviation are not demodulated.
                 let plane = match (&e.plain, source, drop_an) {
                     (_, Plane::Guide(k), _) if colour_only => &e.colour_guide[k * n_px..][..n_px],
+                    (_, Plane::Guide(k), _) if albedo_guide => &e.planes[Plane::Albedo(k).index() * n_px..][..n_px],
                     (Some((plain, _)), Plane::Color(k), true) => &plain[k * n_px..][..n_px],
                     (Some((plain, _)), Plane::Deviation(k), true) => &plain[(3 + k) * n_px..][..n_px],
                     _ => &e.planes[source.index() * n_px..][..n_px],
@@ -390,6 +407,7 @@ mod tests {
                 drop_probability: self.drop_probability,
                 variance_drop_probability: p,
                 colour_only_probability: self.colour_only_probability,
+                albedo_guide_probability: self.albedo_guide_probability,
                 channels: self.channels,
             }
         }
@@ -531,6 +549,39 @@ mod tests {
                 x.chunks(c * px).flat_map(|crop| crop[Plane::Guide(0).index() * px..][..3 * px].to_vec()).collect();
             assert!(guides.contains(&1.0) && guides.iter().any(|v| *v > 0.0 && *v < 1.0));
         }
+    }
+
+    #[test]
+    fn crops_from_other_software_take_their_albedo_as_guide() {
+        // The toy's guide is its albedo on odd columns and black on even ones, so a crop whose
+        // guide equals its albedo took the stand-in, and one whose guide does not kept its own.
+        let sampler = CropSampler::new(&[toy_view()], 8, Encoding::default(), None).unwrap();
+        let (px, c) = (64, rtd_denoise::INPUT_CHANNELS);
+        let (an, ad) = (Plane::HasAlbedoNormal.index(), Plane::HasAoDepth.index());
+        let (guide, albedo) = (Plane::Guide(0).index(), Plane::Albedo(0).index());
+        let count = |p: f32| {
+            let x = sampler.clone_with_variance_drop(0.3).drop_probability(0.5).albedo_guide_probability(p);
+            let x = x.batch(11, 4, 64).inputs;
+            let (mut stand_in, mut own) = (0, 0);
+            for crop in x.chunks(c * px) {
+                let same = crop[guide * px..][..3 * px] == crop[albedo * px..][..3 * px];
+                // Only a crop with albedo and without AO + depth may take the stand-in.
+                let eligible = crop[an * px] == 1.0 && crop[ad * px] == 0.0;
+                assert!(eligible || !same, "a crop with AO or without albedo took the albedo as guide");
+                if eligible {
+                    if same {
+                        stand_in += 1
+                    } else {
+                        own += 1
+                    }
+                }
+            }
+            (stand_in, own)
+        };
+        let (never, _) = count(0.0);
+        let (always, kept) = count(1.0);
+        assert_eq!((never, kept), (0, 0));
+        assert!(always >= 8, "{always} eligible crops");
     }
 
     #[test]

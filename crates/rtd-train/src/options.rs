@@ -61,6 +61,11 @@ pub struct TrainOptions {
     /// made before this case existed had none: their state files read 0.
     #[serde(default)]
     pub colour_only: f32,
+    /// Probability that a crop with albedo but without AO + depth takes its albedo as its guide
+    /// RGB, as `rtd denoise` does for files from other software (Blender, Nuke) that have no
+    /// guide. Runs made before this case existed had none: their state files read 0.
+    #[serde(default)]
+    pub albedo_guide: f32,
     /// Score every epoch on the validation views of this dataset instead of the training
     /// dataset's own: a held-out split made apart (`rtd datagen --split validation`), for a
     /// training set made with `--split training`, which has none.
@@ -99,6 +104,7 @@ impl Default for TrainOptions {
             guide_drop: DROP_PROBABILITY,
             variance_drop: DROP_PROBABILITY,
             colour_only: COLOUR_ONLY_PROBABILITY,
+            albedo_guide: 0.0,
             validation_data: None,
             more_data: vec![],
         }
@@ -157,6 +163,12 @@ impl TrainOptions {
     /// Sets the probability that a crop is colour alone (clamped to [0, 1]).
     pub fn colour_only(mut self, p: f32) -> Self {
         self.colour_only = p.clamp(0.0, 1.0);
+        self
+    }
+    /// Sets the probability that a crop with albedo but without AO + depth takes its albedo as
+    /// its guide (clamped to [0, 1]).
+    pub fn albedo_guide(mut self, p: f32) -> Self {
+        self.albedo_guide = p.clamp(0.0, 1.0);
         self
     }
     /// Sets the probability that a crop loses its variance (clamped to [0, 1]).
@@ -244,6 +256,9 @@ impl TrainOptions {
         }
         if !(0.0..=1.0).contains(&self.colour_only) {
             return Some(format!("the colour-only probability {} is not in [0, 1]", self.colour_only));
+        }
+        if !(0.0..=1.0).contains(&self.albedo_guide) {
+            return Some(format!("the albedo-as-guide probability {} is not in [0, 1]", self.albedo_guide));
         }
         let (crop, align) = (self.crop, self.config.alignment());
         if crop == 0 || crop % align != 0 {

@@ -214,7 +214,8 @@ fn load_data(data: &Path, options: &TrainOptions) -> Result<(CropSampler, Vec<Vi
         CropSampler::new(&train_views, options.crop, options.config.encoding(), options.spp_levels.as_deref())?
             .drop_probability(options.guide_drop)
             .variance_drop_probability(options.variance_drop)
-            .colour_only_probability(options.colour_only);
+            .colour_only_probability(options.colour_only)
+            .albedo_guide_probability(options.albedo_guide);
     Ok((sampler, val_views))
 }
 

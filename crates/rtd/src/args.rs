@@ -101,8 +101,9 @@ pub struct BenchArgs {
 /// The benchmarks.
 #[derive(Debug, Clone, Subcommand)]
 pub enum BenchCommand {
-    /// Compare noisy, rtd (all guides / guide RGB only), the noisy-as-guide ablation, the
-    /// guided-filter baseline and external results on a dataset's validation views.
+    /// Compare noisy, rtd (all guides / guide RGB only / albedo + normal as OIDN is given), the
+    /// noisy-as-guide ablation, the guided-filter baseline and external results on a dataset's
+    /// validation views.
     Validation(ValidationArgs),
     /// Equal-time comparison on one scene: rtd (low spp + guide + denoise) against plain path
     /// tracing given the same wall time, scored against a reference.

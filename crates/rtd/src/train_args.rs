@@ -186,6 +186,11 @@ pub struct TrainLossArgs {
     /// passes
     #[arg(long, default_value_t = rtd_train::data::COLOUR_ONLY_PROBABILITY, value_parser = probability)]
     pub colour_only: f32,
+    /// Probability that a training crop with albedo but without AO + depth takes its albedo as
+    /// its guide RGB, as `rtd denoise` does for files from other software (Blender, Nuke) that
+    /// have no guide
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    pub albedo_guide: f32,
 }
 
 /// A loss weight in [0, 100].

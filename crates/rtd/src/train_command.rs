@@ -133,6 +133,7 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
         .guide_drop(loss.guide_drop)
         .variance_drop(loss.variance_drop)
         .colour_only(loss.colour_only)
+        .albedo_guide(loss.albedo_guide)
         .validation_data(args.validation_data.clone())
         .more_data(args.more_data.clone())
         .seed(schedule.seed)
