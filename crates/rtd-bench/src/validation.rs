@@ -1,8 +1,9 @@
 //! Validation report: on the held-out views of a dataset, compares the noisy input, the
 //! denoiser with all of rtd's guide layers, the denoiser with only the guide RGB (the mode for
-//! other software), the denoiser with colour, albedo and normal only (OIDN's inputs), the thesis's §6.4 ablation (the noisy image given as the guide), the
-//! non-learned guided filter (its parameters chosen by grid search on the training views), and
-//! optionally external results such as Intel OIDN's, all with the same metric code.
+//! other software), the denoiser with colour, albedo and normal only (OIDN's inputs), the
+//! thesis's §6.4 ablation (the noisy image given as the guide), the non-learned guided filter
+//! (its parameters chosen by grid search on the training views), and optionally external
+//! results such as Intel OIDN's, all with the same metric code.
 
 use std::path::{Path, PathBuf};
 
@@ -145,9 +146,10 @@ pub fn validation_report(
     for v in &val {
         let input = v.input(spp)?;
         let color = input.color;
-        let guide_only = DenoiseInput::new(color, &v.guide);
-        let ablation = DenoiseInput::new(color, color);
-        let as_oidn = DenoiseInput::new(color, &v.albedo).albedo_normal(&v.albedo, &v.normal);
+        // Other software's inputs, read as `rtd denoise` reads such files.
+        let guide_only = DenoiseInput::with_stand_in_guide(color, Some(&v.guide), None, None);
+        let as_oidn = DenoiseInput::with_stand_in_guide(color, None, Some(&v.albedo), Some(&v.normal));
+        let ablation = DenoiseInput::with_stand_in_guide(color, None, None, None);
         let denoised = model.denoise(&input)?;
         let stem = Path::new(&v.record.file).file_stem().and_then(|s| s.to_str()).unwrap_or_default().to_string();
         if let Some(dir) = save {

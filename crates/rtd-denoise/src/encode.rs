@@ -80,6 +80,21 @@ impl<'a> DenoiseInput<'a> {
     pub fn new(color: &'a HdrImage, guide: &'a HdrImage) -> Self {
         DenoiseInput { color, guide, albedo_normal: None, ao_depth: None, variance: None }
     }
+    /// The layers a file holds, as `rtd denoise` reads them: the guide RGB if given, else the
+    /// albedo stands in for it, else the noisy colour itself; albedo and normal where both are
+    /// given. Files from other software (Blender, Nuke, OIDN's inputs) have no guide.
+    pub fn with_stand_in_guide(
+        color: &'a HdrImage,
+        guide: Option<&'a HdrImage>,
+        albedo: Option<&'a HdrImage>,
+        normal: Option<&'a HdrImage>,
+    ) -> Self {
+        let input = DenoiseInput::new(color, guide.or(albedo).unwrap_or(color));
+        match (albedo, normal) {
+            (Some(a), Some(n)) => input.albedo_normal(a, n),
+            _ => input,
+        }
+    }
     /// Adds albedo and normal.
     pub fn albedo_normal(mut self, albedo: &'a HdrImage, normal: &'a HdrImage) -> Self {
         self.albedo_normal = Some((albedo, normal));

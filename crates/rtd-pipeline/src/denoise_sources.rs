@@ -131,19 +131,16 @@ impl DenoiseSources {
         // The colour's EXR file, taken whole (not copied): the output is made from it.
         let color_file = color.names.and_then(|names| Some((files.exr.remove(&self.color)?, names)));
         drop(files);
-        // Without a guide image, the albedo stands in for material colour × AO, and without an
-        // albedo the noisy colour itself.
-        let stand_in = guide.as_ref().or(albedo.as_ref()).unwrap_or(&color.image);
         // rtd's own renders carry the colour's per-pixel variance beside it.
         let variance = color_file.as_ref().and_then(|(layers, _)| layers.image(Layer::Variance));
         let variance = variance.filter(|v| (v.width, v.height) == (color.image.width, color.image.height));
         if variance.is_some() && denoiser.reads_variance() {
             inputs.push("variance".to_string());
         }
-        let mut input = DenoiseInput::new(&color.image, stand_in).variance(variance.as_ref());
-        if let (Some(a), Some(n)) = (&albedo, &normal) {
-            input = input.albedo_normal(a, n);
-        }
+        // Without a guide image, the albedo stands in for material colour × AO, and without an
+        // albedo the noisy colour itself.
+        let input = DenoiseInput::with_stand_in_guide(&color.image, guide.as_ref(), albedo.as_ref(), normal.as_ref())
+            .variance(variance.as_ref());
         let t = Instant::now();
         let image = finite(denoiser.denoise(&input)?);
         let denoise_s = t.elapsed().as_secs_f64();

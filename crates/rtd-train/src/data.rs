@@ -170,7 +170,8 @@ pub struct CropSampler {
     /// albedo, normal, AO or depth.
     pub colour_only_probability: f32,
     /// Probability that a crop with albedo but without AO + depth takes its albedo as its
-    /// guide RGB, as `rtd denoise` does for files from other software that have no guide.
+    /// guide RGB, as `rtd denoise` does for files from other software that have no guide (the
+    /// rule of [`rtd_denoise::DenoiseInput::with_stand_in_guide`], here on encoded planes).
     pub albedo_guide_probability: f32,
     /// Input planes per crop: the model's width.
     channels: usize,
