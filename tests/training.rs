@@ -265,6 +265,17 @@ fn fine_tuning_starts_from_the_given_model_and_checks_its_config() {
     let back = tuned.clone().init(Some(dir.path().join("k/model.bpk")));
     let err = train(&data, &dir.path().join("kd"), &back, false, &Quiet).unwrap_err().to_string();
     assert!(err.contains("another network"), "{err}");
+    // Wider kernels: the model's config keeps their size, and it denoises to something else
+    // than the 5×5 heads drawn from the same seed; a 5×5 model cannot seed a 7×7 run.
+    let wide = tiny_config().with_kernel_output(Some(true)).with_kernel_size(Some(7));
+    train(&data, &dir.path().join("k7"), &tuned.clone().config(wide.clone()), false, &Quiet).unwrap();
+    let cfg = std::fs::read_to_string(dir.path().join("k7/model.json")).unwrap();
+    assert_eq!(rtd::denoise::DenoiserConfig::from_json(&cfg).unwrap().kernel_size(), 7);
+    let k7 = run("k7");
+    assert!(k7.iter().all(|v| v.is_finite()) && diff(&k, &k7) > 1e-3);
+    let narrow = tuned.clone().config(wide).init(Some(dir.path().join("k/model.bpk")));
+    let err = train(&data, &dir.path().join("k75"), &narrow, false, &Quiet).unwrap_err().to_string();
+    assert!(err.contains("another network"), "{err}");
     // A model of another shape is refused, naming its config file.
     let other = options.clone().config(rtd::denoise::DenoiserConfig::new(vec![8])).init(Some(a_model));
     let err = train(&data, &dir.path().join("d"), &other, false, &Quiet).unwrap_err().to_string();

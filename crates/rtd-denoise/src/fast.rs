@@ -445,6 +445,8 @@ pub struct FastNet {
     heads: Option<Vec<Conv>>,
     /// Whether the heads' levels are blended through bilinear upsampling (else nearest).
     bilinear: bool,
+    /// The side of the heads' kernels.
+    kernel_size: usize,
 }
 
 impl FastNet {
@@ -470,6 +472,7 @@ impl FastNet {
                 k.kernels.iter().enumerate().map(head).collect()
             }),
             bilinear: net.kernel.as_ref().is_some_and(|k| k.bilinear),
+            kernel_size: net.kernel.as_ref().map_or(crate::kernel_output::DEFAULT_KERNEL_SIZE, |k| k.size),
         }
     }
 
@@ -520,7 +523,8 @@ impl FastNet {
         }
         logits.push(out);
         logits.reverse();
-        let out = crate::kernel_output::apply_planar(&x.data, x.w, x.h, &logits, self.bilinear, scratch);
+        let blend = (self.bilinear, self.kernel_size);
+        let out = crate::kernel_output::apply_planar(&x.data, (x.w, x.h), &logits, blend, scratch);
         logits.into_iter().for_each(|m| scratch.recycle(m));
         out
     }
@@ -542,6 +546,10 @@ mod tests {
             DenoiserConfig::new(vec![8, 12, 16]).with_kernel_output(Some(true)),
             DenoiserConfig::new(vec![8]).with_kernel_output(Some(true)),
             DenoiserConfig::new(vec![8, 12, 16]).with_kernel_output(Some(true)).with_bilinear_blend(Some(true)),
+            DenoiserConfig::new(vec![8, 12])
+                .with_kernel_output(Some(true))
+                .with_bilinear_blend(Some(true))
+                .with_kernel_size(Some(7)),
         ];
         // (config, width, height): 52×44 spans several pixel chunks, whose edges fall mid-row;
         // 24×100 runs the full-resolution blocks in bands, the last one short.
@@ -556,6 +564,7 @@ mod tests {
             (3, 52, 44),
             (4, 20, 12),
             (5, 52, 44),
+            (6, 52, 44),
         ];
         for (i, w, h) in sizes {
             let config = &configs[i];

@@ -16,8 +16,11 @@ use crate::tensor_ops::conv1x1;
 use crate::upsample::upsample2;
 use crate::vector_math::{exp_m1_row, exp_nonpositive, ln_1p_row, logistic, multiversioned};
 
-/// The side of each predicted kernel.
-pub const KERNEL_SIZE: usize = 5;
+/// The side of each predicted kernel unless the model's config says otherwise
+/// ([`crate::model::DenoiserConfig::kernel_size`]).
+pub const DEFAULT_KERNEL_SIZE: usize = 5;
+/// The widest kernel a model may predict (odd sides from 3 up to this).
+pub const MAX_KERNEL_SIZE: usize = 9;
 
 /// The kernel and blend heads, one of each per resolution level (the coarsest has no blend).
 #[derive(Module, Debug)]
@@ -30,25 +33,29 @@ pub struct KernelOutput {
     /// neighbour, whose 2×2 blocks nest into visible 4×4 ones where the correction is large);
     /// from [`crate::model::DenoiserConfig::blends_bilinearly`]. Not a weight.
     pub(crate) bilinear: bool,
+    /// The side K of every level's kernels (odd); from
+    /// [`crate::model::DenoiserConfig::kernel_size`]. Not a weight.
+    pub(crate) size: usize,
 }
 
 impl KernelOutput {
-    /// Heads for levels of `channels` channels, full resolution first, blending through
-    /// bilinear upsampling if `bilinear`, else nearest.
-    pub fn new(channels: &[usize], bilinear: bool, device: &Device) -> Self {
-        let k2 = KERNEL_SIZE * KERNEL_SIZE;
+    /// Heads predicting `size`×`size` kernels for levels of `channels` channels, full
+    /// resolution first, blending through bilinear upsampling if `bilinear`, else nearest.
+    pub fn new(channels: &[usize], bilinear: bool, size: usize, device: &Device) -> Self {
+        let k2 = size * size;
         let one = |cin: usize, cout: usize| Conv2dConfig::new([cin, cout], [1, 1]).init(device);
         KernelOutput {
             kernels: channels.iter().map(|&c| one(c, k2)).collect(),
             blends: channels[..channels.len() - 1].iter().map(|&c| one(c, 1)).collect(),
             bilinear,
+            size,
         }
     }
 
-    /// Multiply-accumulates per full-resolution pixel: the heads and the kernels' application
-    /// to three colour channels, at each level's share of the pixels.
-    pub fn macs(channels: &[usize]) -> f64 {
-        let k2 = KERNEL_SIZE * KERNEL_SIZE;
+    /// Multiply-accumulates per full-resolution pixel of `size`×`size` kernels: the heads and
+    /// the kernels' application to three colour channels, at each level's share of the pixels.
+    pub fn macs(channels: &[usize], size: usize) -> f64 {
+        let k2 = size * size;
         let level = |l: usize, c: usize| {
             let blend = if l + 1 < channels.len() { c } else { 0 };
             (c * k2 + blend + 3 * k2) as f64 / (1u64 << (2 * l)) as f64
@@ -56,11 +63,11 @@ impl KernelOutput {
         channels.iter().enumerate().map(|(l, &c)| level(l, c)).sum()
     }
 
-    /// How far (in full-resolution pixels) the heads reach beyond the features: the coarsest
-    /// kernel's half-width at its scale, plus the box pyramid.
-    pub fn radius(levels: usize) -> usize {
+    /// How far (in full-resolution pixels) `size`×`size` heads reach beyond the features: the
+    /// coarsest kernel's half-width at its scale, plus the box pyramid.
+    pub fn radius(levels: usize, size: usize) -> usize {
         let coarse = 1 << (levels - 1);
-        KERNEL_SIZE / 2 * coarse + coarse
+        size / 2 * coarse + coarse
     }
 
     /// `noisy`: [N, 3, H, W] encoded noisy colour (ln(1 + x·exposure), see
@@ -76,7 +83,7 @@ impl KernelOutput {
                 level = box_down2(level);
             }
             let weights = softmax(conv1x1(&self.kernels[l], f.clone()), 1); // [N, K², H/2^l, W/2^l]
-            filtered.push(apply_kernels(level.clone(), weights));
+            filtered.push(apply_kernels(level.clone(), weights, self.size));
         }
         // Coarse to fine: a level's own low band (its 2× box mean, upsampled) is replaced by the
         // coarser result in the proportion the blend head predicts.
@@ -126,16 +133,17 @@ fn pad_replicate(x: Tensor<4>, p: usize) -> Tensor<4> {
     Tensor::cat(vec![left, x, right], 3)
 }
 
-/// Per-pixel kernels applied to every channel: out(y, x) = Σ_(i,j) w_(i,j)(y, x) · in(y + i − r, x + j − r),
-/// with `weights` [N, K², H, W] in row-major tap order and `x` [N, C, H, W] edge-replicated.
-fn apply_kernels(x: Tensor<4>, weights: Tensor<4>) -> Tensor<4> {
+/// Per-pixel K×K kernels (K = `size`) applied to every channel:
+/// out(y, x) = Σ_(i,j) w_(i,j)(y, x) · in(y + i − r, x + j − r), with `weights` [N, K², H, W]
+/// in row-major tap order and `x` [N, C, H, W] edge-replicated.
+fn apply_kernels(x: Tensor<4>, weights: Tensor<4>, size: usize) -> Tensor<4> {
     let [_, _, h, w] = x.dims();
-    let padded = pad_replicate(x, KERNEL_SIZE / 2);
+    let padded = pad_replicate(x, size / 2);
     let mut sum: Option<Tensor<4>> = None;
-    for i in 0..KERNEL_SIZE {
-        for j in 0..KERNEL_SIZE {
+    for i in 0..size {
+        for j in 0..size {
             let tap = padded.clone().narrow(2, i, h).narrow(3, j, w);
-            let wt = weights.clone().narrow(1, i * KERNEL_SIZE + j, 1);
+            let wt = weights.clone().narrow(1, i * size + j, 1);
             let term = tap * wt;
             sum = Some(match sum {
                 Some(s) => s + term,
@@ -148,11 +156,17 @@ fn apply_kernels(x: Tensor<4>, weights: Tensor<4>) -> Tensor<4> {
 
 /// The fast path's [`KernelOutput::forward`] on planar maps: `noisy` holds the three encoded
 /// colour planes of a `w`×`h` image, and `logits[l]` the heads' outputs at level l (K² kernel
-/// logits, then the blend logit at every level but the coarsest). `bilinear` chooses the
-/// blend's upsampling, as [`KernelOutput`]'s field does. Returns the three encoded output
+/// logits, then the blend logit at every level but the coarsest). `bilinear` and `size` (K)
+/// are [`KernelOutput`]'s fields of those names. Returns the three encoded output
 /// planes; every image-sized buffer, the result's included, comes from `scratch`, so repeated
 /// calls touch no fresh memory (only the row-sized scratch of each task is allocated anew).
-pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear: bool, scratch: &mut Scratch) -> Map {
+pub fn apply_planar(
+    noisy: &[f32],
+    (w, h): (usize, usize),
+    logits: &[Map],
+    (bilinear, size): (bool, usize),
+    scratch: &mut Scratch,
+) -> Map {
     let top = crate::encode::MAX_EXPOSED.ln_1p();
     let mut level = scratch.map(w, h, 3);
     level.data.par_chunks_mut(w).zip(noisy[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| exp_m1_row(dst, src, top));
@@ -162,14 +176,14 @@ pub fn apply_planar(noisy: &[f32], w: usize, h: usize, logits: &[Map], bilinear:
             let down = box_down2_planar(&level, scratch);
             scratch.recycle(std::mem::replace(&mut level, down));
         }
-        filtered.push(filter_planar(&level, lg, scratch));
+        filtered.push(filter_planar(&level, lg, size, scratch));
     }
     scratch.recycle(level);
     // Coarse to fine, as the burn version blends.
     let mut out = filtered.pop().expect("at least one level");
     for (l, mut fine) in filtered.into_iter().enumerate().rev() {
         let (lw, lh) = (fine.w, fine.h);
-        let blend = &logits[l].data[KERNEL_SIZE * KERNEL_SIZE * lw * lh..][..lw * lh];
+        let blend = &logits[l].data[size * size * lw * lh..][..lw * lh];
         // The coarser result's difference from this level's own low band, once per coarse pixel.
         let mut correction = box_down2_planar(&fine, scratch);
         correction.data.par_chunks_mut(lw / 2).zip(out.data.par_chunks(lw / 2)).for_each(|(low, o)| {
@@ -265,12 +279,13 @@ fn box_down2_planar(img: &Map, scratch: &mut Scratch) -> Map {
     out
 }
 
-/// Each pixel's softmax-normalised K×K kernel (from the first K² planes of `logits`) applied
-/// to the three planes of `img`, which has the logits' size, with edges replicated; into a map
-/// from `scratch`. Row by row, every loop runs along the row, so the compiler vectorises it.
-fn filter_planar(img: &Map, logits: &Map, scratch: &mut Scratch) -> Map {
+/// Each pixel's softmax-normalised K×K kernel (K = `size`, from the first K² planes of
+/// `logits`) applied to the three planes of `img`, which has the logits' size, with edges
+/// replicated; into a map from `scratch`. Row by row, every loop runs along the row, so the
+/// compiler vectorises it.
+fn filter_planar(img: &Map, logits: &Map, size: usize, scratch: &mut Scratch) -> Map {
     let (w, h) = (logits.w, logits.h);
-    let r = KERNEL_SIZE / 2;
+    let r = size / 2;
     // Each source row once, edge-replicated by r pixels on both sides, so a tap's shifted row
     // is a plain slice.
     let pw = w + 2 * r;
@@ -283,8 +298,8 @@ fn filter_planar(img: &Map, logits: &Map, scratch: &mut Scratch) -> Map {
     // Row y of each of the three output planes, filled together from one softmax.
     let mut out = scratch.map(w, h, 3);
     rgb_rows(&mut out.data, w, h).enumerate().for_each_init(
-        || (vec![0.0f32; KERNEL_SIZE * KERNEL_SIZE * w], vec![0.0f32; w]),
-        |(taps, norm), (y, dst)| filter_row(logits, (&padded.data, pw), y, (taps, norm), dst),
+        || (vec![0.0f32; size * size * w], vec![0.0f32; w]),
+        |(taps, norm), (y, dst)| filter_row(logits, (&padded.data, pw, size), y, (taps, norm), dst),
     );
     scratch.recycle(padded);
     out
@@ -292,18 +307,19 @@ fn filter_planar(img: &Map, logits: &Map, scratch: &mut Scratch) -> Map {
 
 multiversioned! {
     /// Row `y` of [`filter_planar`]: the three channels' filtered rows into `dst`, from the
-    /// `padded` source planes (rows of `pw`), with `taps` (K² rows) and `norm` (one) as scratch.
+    /// `padded` source planes (rows of `pw`) and K×K kernels, with `taps` (K² rows) and `norm`
+    /// (one) as scratch.
     fn filter_row(
         logits: &Map,
-        padded: (&[f32], usize),
+        padded: (&[f32], usize, usize),
         y: usize,
         scratch: (&mut [f32], &mut [f32]),
         dst: [&mut [f32]; 3],
     ) {
         let (w, h) = (logits.w, logits.h);
-        let (padded, pw) = padded;
+        let (padded, pw, size) = padded;
         let (taps, norm) = scratch;
-        let (k2, r) = (KERNEL_SIZE * KERNEL_SIZE, KERNEL_SIZE / 2);
+        let (k2, r) = (size * size, size / 2);
         // Softmax over the taps, per pixel: exp(logit − max) / Σ.
         let tap_row = |t: usize| &logits.data[(t * h + y) * w..][..w];
         norm.copy_from_slice(tap_row(0));
@@ -322,11 +338,11 @@ multiversioned! {
         // Σ over taps of weight × the source row shifted by the tap, edges replicated.
         for (c, out) in dst.into_iter().enumerate() {
             out.fill(0.0);
-            for i in 0..KERNEL_SIZE {
+            for i in 0..size {
                 let sy = (y + i).saturating_sub(r).min(h - 1);
                 let src = &padded[(c * h + sy) * pw..][..pw];
-                for j in 0..KERNEL_SIZE {
-                    let e = &taps[(i * KERNEL_SIZE + j) * w..][..w];
+                for j in 0..size {
+                    let e = &taps[(i * size + j) * w..][..w];
                     out.iter_mut().zip(e).zip(&src[j..j + w]).for_each(|((o, &e), &v)| *o += e * v);
                 }
             }
@@ -348,20 +364,23 @@ mod tests {
         t.into_data().try_into_vec::<f32>().unwrap()
     }
 
-    /// A one-hot kernel shifts the image by its tap's offset, with edges replicated.
+    /// A one-hot kernel shifts the image by its tap's offset, with edges replicated, whatever
+    /// the kernel's size.
     #[test]
     fn one_hot_kernels_shift_the_image() {
         let (h, w) = (4, 6);
         let img: Vec<f32> = (0..h * w).map(|i| i as f32).collect();
-        let k2 = KERNEL_SIZE * KERNEL_SIZE;
-        // Tap (i, j) = (2, 3): one pixel to the right.
-        let tap = 2 * KERNEL_SIZE + 3;
-        let mut weights = vec![0.0f32; k2 * h * w];
-        weights[tap * h * w..][..h * w].fill(1.0);
-        let out = values(apply_kernels(tensor(img.clone(), [1, 1, h, w]), tensor(weights, [1, k2, h, w])));
-        for y in 0..h {
-            for x in 0..w {
-                assert_eq!(out[y * w + x], img[y * w + (x + 1).min(w - 1)], "pixel ({x}, {y})");
+        for size in [3, DEFAULT_KERNEL_SIZE, 7] {
+            let (k2, r) = (size * size, size / 2);
+            // Tap (i, j) = (r, r + 1): one pixel to the right.
+            let tap = r * size + r + 1;
+            let mut weights = vec![0.0f32; k2 * h * w];
+            weights[tap * h * w..][..h * w].fill(1.0);
+            let out = values(apply_kernels(tensor(img.clone(), [1, 1, h, w]), tensor(weights, [1, k2, h, w]), size));
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(out[y * w + x], img[y * w + (x + 1).min(w - 1)], "size {size}, pixel ({x}, {y})");
+                }
             }
         }
     }
@@ -396,18 +415,18 @@ mod tests {
 
     /// Normalised kernels keep a flat image flat at every level, whatever the heads predict,
     /// so the output of a constant input is that constant (the encoding round-trips), with
-    /// either upsampling in the blend.
+    /// either upsampling in the blend and kernels of any size.
     #[test]
     fn a_flat_image_comes_out_unchanged() {
-        for bilinear in [false, true] {
-            flat_stays_flat(bilinear);
+        for (bilinear, size) in [(false, DEFAULT_KERNEL_SIZE), (true, DEFAULT_KERNEL_SIZE), (true, 7)] {
+            flat_stays_flat(bilinear, size);
         }
     }
 
-    fn flat_stays_flat(bilinear: bool) {
+    fn flat_stays_flat(bilinear: bool, size: usize) {
         let device = Device::flex();
         let channels = [4, 6, 8];
-        let heads = KernelOutput::new(&channels, bilinear, &device);
+        let heads = KernelOutput::new(&channels, bilinear, size, &device);
         let (h, w) = (8, 12);
         let level = |l: usize, c: usize| {
             let (hh, ww) = (h >> l, w >> l);

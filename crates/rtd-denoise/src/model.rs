@@ -68,6 +68,11 @@ pub struct DenoiserConfig {
     /// large). Absent (older model files) means nearest; read it through
     /// [`DenoiserConfig::blends_bilinearly`].
     pub bilinear_blend: Option<bool>,
+    /// The side of a kernel-predicting output's kernels at every level (odd, 3 to
+    /// [`crate::kernel_output::MAX_KERNEL_SIZE`]). Absent (older model files) means
+    /// [`crate::kernel_output::DEFAULT_KERNEL_SIZE`]; read it through
+    /// [`DenoiserConfig::kernel_size`].
+    pub kernel_size: Option<usize>,
 }
 
 impl DenoiserConfig {
@@ -89,6 +94,11 @@ impl DenoiserConfig {
     /// Whether a kernel-predicting output blends bilinearly (see the `bilinear_blend` field).
     pub fn blends_bilinearly(&self) -> bool {
         self.bilinear_blend.unwrap_or(false)
+    }
+
+    /// The side of the predicted kernels (see the `kernel_size` field).
+    pub fn kernel_size(&self) -> usize {
+        self.kernel_size.unwrap_or(crate::kernel_output::DEFAULT_KERNEL_SIZE)
     }
 
     /// The exposure key (see the `exposure_key` field).
@@ -124,7 +134,8 @@ impl DenoiserConfig {
     /// if anything: no levels or more than [`MAX_LEVELS`], a level of no channels or more than
     /// [`MAX_LEVEL_CHANNELS`], an even prong or one wider than [`MAX_PRONG`] (an even one has no centre
     /// tap, so its branch would come out a pixel short of the others), or more than
-    /// [`MAX_BOTTLENECK_BLOCKS`] bottleneck blocks. One sentence.
+    /// [`MAX_BOTTLENECK_BLOCKS`] bottleneck blocks, or a kernel side that is even (no centre
+    /// tap) or outside 3 to [`crate::kernel_output::MAX_KERNEL_SIZE`]. One sentence.
     pub fn shape_problem(&self) -> Option<String> {
         let c = &self.channels;
         if c.is_empty() || c.len() > MAX_LEVELS || c.iter().any(|&n| n == 0 || n > MAX_LEVEL_CHANNELS) {
@@ -138,6 +149,10 @@ impl DenoiserConfig {
         if self.bottleneck_blocks > MAX_BOTTLENECK_BLOCKS {
             let blocks = self.bottleneck_blocks;
             return Some(format!("implausible bottleneck of {blocks} blocks (at most {MAX_BOTTLENECK_BLOCKS})"));
+        }
+        let (k, max_k) = (self.kernel_size(), crate::kernel_output::MAX_KERNEL_SIZE);
+        if !(3..=max_k).contains(&k) || k.is_multiple_of(2) {
+            return Some(format!("implausible kernel size {k} (an odd side from 3 to {max_k})"));
         }
         None
     }
@@ -188,7 +203,8 @@ impl DenoiserConfig {
             })
             .collect();
         let output = conv(c[0], 3, 1, 1, device);
-        let kernel = self.predicts_kernels().then(|| KernelOutput::new(c, self.blends_bilinearly(), device));
+        let kernel =
+            self.predicts_kernels().then(|| KernelOutput::new(c, self.blends_bilinearly(), self.kernel_size(), device));
         let net = DenoiserNet { kernel, stem, encoders, bottleneck, decoders, output };
         net.map(&mut NumberedParams(0))
     }
@@ -210,7 +226,7 @@ impl DenoiserConfig {
             r += (1 << l) * 2; // nearest upsample + 1×1 fuse + 3×3 conv at scale 2^l
         }
         if self.predicts_kernels() {
-            r += KernelOutput::radius(levels);
+            r += KernelOutput::radius(levels, self.kernel_size());
         }
         r
     }
@@ -231,7 +247,7 @@ impl DenoiserConfig {
             m += ((c[l + 1] + c[l]) * c[l] + 9 * c[l] * c[l]) as f64 * scale(l);
         }
         if self.predicts_kernels() {
-            return m + KernelOutput::macs(c);
+            return m + KernelOutput::macs(c, self.kernel_size());
         }
         m + (c[0] * 3) as f64
     }
@@ -402,7 +418,8 @@ impl DenoiserNet {
         let _held = backend_rng();
         if self.kernel.is_none() {
             device.seed(seed);
-            self.kernel = Some(KernelOutput::new(&config.channels, config.blends_bilinearly(), device));
+            let (bilinear, size) = (config.blends_bilinearly(), config.kernel_size());
+            self.kernel = Some(KernelOutput::new(&config.channels, bilinear, size, device));
         }
         self.map(&mut NumberedParams(0))
     }
@@ -526,6 +543,13 @@ mod tests {
         let direct = DenoiserConfig::new(vec![8, 12]);
         let kp = direct.clone().with_kernel_output(Some(true));
         assert!(kp.macs_per_pixel() > direct.macs_per_pixel());
+        // Wider kernels cost more and reach further; an even or oversized side is refused.
+        let wide = kp.clone().with_kernel_size(Some(7));
+        assert!(wide.macs_per_pixel() > kp.macs_per_pixel() && wide.receptive_radius() > kp.receptive_radius());
+        assert!(kp.shape_problem().is_none() && wide.shape_problem().is_none());
+        for bad in [1, 4, 11] {
+            assert!(kp.clone().with_kernel_size(Some(bad)).shape_problem().is_some(), "kernel size {bad}");
+        }
         assert!(kp.receptive_radius() > direct.receptive_radius());
         let (h, w, c) = (8, 12, INPUT_CHANNELS);
         let mut values: Vec<f32> = (0..c * h * w).map(|i| (i * 37 % 101) as f32 / 50.0).collect();

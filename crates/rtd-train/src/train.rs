@@ -79,7 +79,8 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
     if config.input_channels > options.config.input_channels {
         return Err(TrainError::msg(&cfg_path, "reads more input planes than the network being trained"));
     }
-    // A direct-prediction model seeds a kernel-predicting one: its heads start random.
+    // A direct-prediction model seeds a kernel-predicting one: its heads, of the run's kernel
+    // size, start random.
     let adds_kernels = options.config.predicts_kernels() && !config.predicts_kernels();
     // The blend's upsampling has no weights either.
     let config = config
@@ -87,7 +88,11 @@ fn initial_net(options: &TrainOptions, device: &Device) -> Result<DenoiserNet, T
         .with_exposure_key(options.config.exposure_key)
         .with_bilinear_blend(options.config.bilinear_blend);
     let target = config.clone().with_input_channels(options.config.input_channels);
-    let target = if adds_kernels { target.with_kernel_output(options.config.kernel_output) } else { target };
+    let target = if adds_kernels {
+        target.with_kernel_output(options.config.kernel_output).with_kernel_size(options.config.kernel_size)
+    } else {
+        target
+    };
     if target != options.config {
         return Err(TrainError::msg(&cfg_path, "describes another network than the one being trained"));
     }

@@ -155,6 +155,11 @@ pub struct TrainModelArgs {
     /// model's config; for a kernel-predicting network, from --kernel-output or --init)
     #[arg(long)]
     pub bilinear_blend: bool,
+    /// The side of the predicted kernels at every level, odd (saved in the model's config;
+    /// default 5; not with --init, whose model sets it)
+    #[arg(long, conflicts_with = "init", requires = "kernel_output",
+          value_parser = clap::value_parser!(u32).range(3..=rtd_denoise::kernel_output::MAX_KERNEL_SIZE as i64))]
+    pub kernel_size: Option<u32>,
     /// Exposure the log-average luminance is mapped to before the log transfer (saved in the
     /// model's config; default 0.18, or the --init model's): larger keys give dark regions more
     /// of the transfer's range and of the loss

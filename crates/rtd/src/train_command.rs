@@ -116,6 +116,10 @@ fn train_options(args: &TrainArgs) -> anyhow::Result<TrainOptions> {
     let config = if model.demodulate { config.with_demodulate(Some(true)) } else { config };
     let config = if model.kernel_output { config.with_kernel_output(Some(true)) } else { config };
     let config = if model.bilinear_blend { config.with_bilinear_blend(Some(true)) } else { config };
+    let config = match model.kernel_size {
+        Some(k) => config.with_kernel_size(Some(k as usize)),
+        None => config,
+    };
     anyhow::ensure!(
         !config.blends_bilinearly() || config.predicts_kernels(),
         "--bilinear-blend: the network predicts colour directly, so it has no kernel levels to blend (add --kernel-output)"
