@@ -13,6 +13,7 @@ use crate::column_winograd::ColumnWinogradWeights;
 use crate::direct::DirectWeights;
 use crate::feature_map::{gather_shifted, SendPtr, IM2COL_CHUNK};
 pub use crate::feature_map::{Map, Rows, Scratch};
+use crate::kernel_output::{blend_levels, exposed_colour, RowFilter};
 use crate::model::{DenoiserNet, InceptionBlock};
 use crate::pooling::{add_upsampled_relu, downsample, pool3_max_min};
 use crate::winograd::WinogradWeights;
@@ -401,14 +402,20 @@ impl FastDecoder {
         }
     }
 
-    /// relu(refine(relu(fuse([up(coarse), skip])))), followed by `output` (without ReLU) if
-    /// given. Band by band of [`BAND`] rows: the fused map exists only for a band and the row
-    /// either side of it, and with `output` so does the refined one, so neither streams a whole
-    /// full-resolution map through memory.
-    fn forward(&self, coarse: &Map, skip: &Map, output: Option<&Conv>, scratch: &mut Scratch) -> Map {
+    /// relu(refine(relu(fuse([up(coarse), skip])))), followed by `output`'s convolution
+    /// (without ReLU) if it has one, and by its kernels' filter if it has one too. Band by band
+    /// of [`BAND`] rows: the fused map exists only for a band and the row either side of it, and
+    /// with an output convolution so does the refined one, so neither streams a whole
+    /// full-resolution map through memory; with a filter, neither do the K² + 1 logit planes.
+    fn forward(&self, coarse: &Map, skip: &Map, output: Output, scratch: &mut Scratch) -> Map {
         let low = self.fuse_coarse.run(coarse, false, scratch);
         let (w, h) = (skip.w, skip.h);
-        let mut out = scratch.map(w, h, output.unwrap_or(&self.refine).cout);
+        let planes = match output {
+            Output::Refined => self.refine.cout,
+            Output::Direct(conv) => conv.cout,
+            Output::Kernels(..) => 4,
+        };
+        let mut out = scratch.map(w, h, planes);
         let reach = self.refine.reach();
         for y0 in (0..h).step_by(BAND) {
             let y1 = (y0 + BAND).min(h);
@@ -417,12 +424,23 @@ impl FastDecoder {
             self.fuse_skip.apply_rows(skip, Rows { of_x: a..b, at: 0 }, &mut fused, 0, false);
             add_upsampled_relu(&low, &mut fused, a);
             let band = Rows { of_x: y0 - a..y1 - a, at: y0 };
-            match output {
+            let conv = match output {
+                Output::Refined => None,
+                Output::Direct(conv) | Output::Kernels(conv, _) => Some(conv),
+            };
+            match conv {
                 None => self.refine.apply_rows(&fused, band, &mut out, 0, true),
                 Some(conv) => {
                     let mut refined = scratch.map(w, y1 - y0, self.refine.cout);
                     self.refine.apply_rows(&fused, Rows { at: 0, ..band }, &mut refined, 0, true);
-                    conv.apply_rows(&refined, Rows { of_x: 0..y1 - y0, at: y0 }, &mut out, 0, false);
+                    if let Output::Kernels(_, filter) = output {
+                        let mut logits = scratch.map(w, y1 - y0, conv.cout);
+                        conv.apply_rows(&refined, Rows { of_x: 0..y1 - y0, at: 0 }, &mut logits, 0, false);
+                        filter.filter_band(&logits, y0, &mut out);
+                        scratch.recycle(logits);
+                    } else {
+                        conv.apply_rows(&refined, Rows { of_x: 0..y1 - y0, at: y0 }, &mut out, 0, false);
+                    }
                     scratch.recycle(refined);
                 }
             }
@@ -431,6 +449,18 @@ impl FastDecoder {
         scratch.recycle(low);
         out
     }
+}
+
+/// What the finest decoder level ends with.
+#[derive(Clone, Copy)]
+enum Output<'a> {
+    /// Its refined features (a level above the finest).
+    Refined,
+    /// A convolution of them: the encoded colour of direct prediction.
+    Direct(&'a Conv),
+    /// The kernel heads' convolution, whose kernels are applied at once: the filtered colour
+    /// and the blend logit ([`RowFilter::filter_band`]).
+    Kernels(&'a Conv, &'a RowFilter),
 }
 
 /// [`DenoiserNet`] converted for the fast path.
@@ -497,36 +527,53 @@ impl FastNet {
         let output = self.heads.as_ref().map_or(&self.output, |h| &h[0]);
         // Kernel heads' logits at each level below the finest, coarsest first.
         let mut logits = vec![];
+        let mut filter = None;
         if self.decoders.is_empty() {
             let out = output.run(&y, false, scratch);
             scratch.recycle(y);
-            return self.finish(x, out, logits, scratch);
+            y = match self.heads.is_some() {
+                true => {
+                    let (level, f) = self.finest_filter(x, scratch);
+                    let mut filtered = scratch.map(out.w, out.h, 4);
+                    f.filter_band(&out, 0, &mut filtered);
+                    scratch.recycle(out);
+                    filter = Some((level, f));
+                    filtered
+                }
+                false => out,
+            };
         }
-        // The finest decoder level also runs the output convolution, band by band.
+        // The finest decoder level also runs the output convolution, band by band, and with
+        // kernel heads their filter.
         for (l, dec) in self.decoders.iter().enumerate().rev() {
             if let Some(heads) = &self.heads {
                 logits.push(heads[l + 1].run(&y, false, scratch));
             }
+            if l == 0 && self.heads.is_some() {
+                filter = Some(self.finest_filter(x, scratch));
+            }
+            let finest = match &filter {
+                Some((_, f)) => Output::Kernels(output, f),
+                None => Output::Direct(output),
+            };
             let skip = skips.pop().expect("one skip per decoder level");
-            let next = dec.forward(&y, &skip, (l == 0).then_some(output), scratch);
+            let next = dec.forward(&y, &skip, if l == 0 { finest } else { Output::Refined }, scratch);
             scratch.recycle(std::mem::replace(&mut y, next));
             scratch.recycle(skip);
         }
-        self.finish(x, y, logits, scratch)
-    }
-
-    /// The output of the finest level's `out`: itself for direct prediction, or the kernels
-    /// it and the coarser `logits` predict applied to `x`'s noisy colour.
-    fn finish(&self, x: &Map, out: Map, mut logits: Vec<Map>, scratch: &mut Scratch) -> Map {
-        if self.heads.is_none() {
-            return out;
-        }
-        logits.push(out);
+        let Some((level, f)) = filter else { return y };
+        f.recycle(scratch);
         logits.reverse();
-        let blend = (self.bilinear, self.kernel_size);
-        let out = crate::kernel_output::apply_planar(&x.data, (x.w, x.h), &logits, blend, scratch);
+        let out = blend_levels(level, y, &logits, (self.bilinear, self.kernel_size), scratch);
         logits.into_iter().for_each(|m| scratch.recycle(m));
         out
+    }
+
+    /// The noisy colour of `x` as the kernels average it, and the finest level's filter over it.
+    fn finest_filter(&self, x: &Map, scratch: &mut Scratch) -> (Map, RowFilter) {
+        let level = exposed_colour(&x.data, (x.w, x.h), scratch);
+        let filter = RowFilter::new(&level, self.kernel_size, scratch);
+        (level, filter)
     }
 }
 

@@ -154,28 +154,94 @@ fn apply_kernels(x: Tensor<4>, weights: Tensor<4>, size: usize) -> Tensor<4> {
     sum.expect("a kernel has taps")
 }
 
-/// The fast path's [`KernelOutput::forward`] on planar maps: `noisy` holds the three encoded
-/// colour planes of a `w`×`h` image, and `logits[l]` the heads' outputs at level l (K² kernel
-/// logits, then the blend logit at every level but the coarsest). `bilinear` and `size` (K)
-/// are [`KernelOutput`]'s fields of those names. Returns the three encoded output
-/// planes; every image-sized buffer, the result's included, comes from `scratch`, so repeated
-/// calls touch no fresh memory (only the row-sized scratch of each task is allocated anew).
-pub fn apply_planar(
-    noisy: &[f32],
-    (w, h): (usize, usize),
-    logits: &[Map],
-    (bilinear, size): (bool, usize),
-    scratch: &mut Scratch,
-) -> Map {
+/// The noisy colour as the kernels average it, in a map from `scratch`: linear (exposed)
+/// values, `exp(y) − 1` of the three encoded colour planes of a `w`×`h` image `noisy`, clamped
+/// as [`KernelOutput::forward`] clamps them. The finest level's input.
+pub fn exposed_colour(noisy: &[f32], (w, h): (usize, usize), scratch: &mut Scratch) -> Map {
     let top = crate::encode::MAX_EXPOSED.ln_1p();
     let mut level = scratch.map(w, h, 3);
     level.data.par_chunks_mut(w).zip(noisy[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| exp_m1_row(dst, src, top));
-    let mut filtered = Vec::with_capacity(logits.len());
-    for (l, lg) in logits.iter().enumerate() {
-        if l > 0 {
-            let down = box_down2_planar(&level, scratch);
-            scratch.recycle(std::mem::replace(&mut level, down));
+    level
+}
+
+/// One level's kernels, applied to rows as their logits come: the level's three colour planes
+/// with every row edge-padded by the kernel's reach, so that a tap's shifted row is a slice.
+/// The fast path filters the finest level band by band inside its last decoder, so that the
+/// K² + 1 logit planes never exist for the whole tile.
+pub struct RowFilter {
+    /// The three planes, rows of `w + 2r` (r = size / 2), `h` rows each.
+    padded: Map,
+    w: usize,
+    h: usize,
+    size: usize,
+}
+
+impl RowFilter {
+    /// The filter of K×K kernels (K = `size`) over `img`'s three planes, its padded rows in a
+    /// map from `scratch` (give it back with [`RowFilter::recycle`]).
+    pub fn new(img: &Map, size: usize, scratch: &mut Scratch) -> Self {
+        let (w, h, r) = (img.w, img.h, size / 2);
+        let pw = w + 2 * r;
+        let mut padded = scratch.map(pw, h, 3);
+        padded.data.par_chunks_mut(pw).zip(img.data[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| {
+            dst[..r].fill(src[0]);
+            dst[r..r + w].copy_from_slice(src);
+            dst[r + w..].fill(src[w - 1]);
+        });
+        RowFilter { padded, w, h, size }
+    }
+
+    /// Filters rows [y0, y0 + logits.h) into planes 0–2 of `out` (the level's size): each
+    /// pixel's softmax-normalised kernel from the first K² planes of `logits`, whose row 0 is
+    /// row y0 (any further planes are not read).
+    pub fn filter_rows(&self, logits: &Map, y0: usize, out: &mut Map) {
+        let (w, h, size) = (self.w, self.h, self.size);
+        assert!(logits.w == w && logits.c >= size * size && out.w == w && out.h == h && y0 + logits.h <= h);
+        let source = (&self.padded.data[..], w + size / 2 * 2, size, h);
+        rgb_rows(&mut out.data, w, h).enumerate().skip(y0).take(logits.h).for_each_init(
+            || (vec![0.0f32; size * size * w], vec![0.0f32; w]),
+            |(taps, norm), (y, dst)| filter_row((logits, y - y0), source, y, (taps, norm), dst),
+        );
+    }
+
+    /// [`RowFilter::filter_rows`], then the blend logit (plane K² of `logits`, which the finest
+    /// level of a network of several has) copied to the same rows of plane 3 of `out`.
+    pub fn filter_band(&self, logits: &Map, y0: usize, out: &mut Map) {
+        self.filter_rows(logits, y0, out);
+        let (w, h, k2) = (self.w, self.h, self.size * self.size);
+        if logits.c > k2 {
+            let from = &logits.data[k2 * logits.h * w..][..logits.h * w];
+            out.data[(3 * h + y0) * w..(3 * h + y0 + logits.h) * w].copy_from_slice(from);
         }
+    }
+
+    /// Gives the padded rows back to `scratch`.
+    pub fn recycle(self, scratch: &mut Scratch) {
+        scratch.recycle(self.padded);
+    }
+}
+
+/// The fast path's [`KernelOutput::forward`] on planar maps, after the finest level's filter:
+/// `level` is the finest level's [`exposed_colour`], `finest` its filtered colour (planes 0–2)
+/// and, with coarser levels, its blend logit (plane 3), as [`RowFilter::filter_rows`] writes
+/// them, and `coarse[l − 1]` the heads' outputs at level l ≥ 1 (K² kernel logits, then the
+/// blend logit at every level but the coarsest). `bilinear` and `size` (K) are
+/// [`KernelOutput`]'s fields of those names. Returns the three encoded output planes (in
+/// `finest`'s buffer); every image-sized buffer comes from and goes back to `scratch`, so
+/// repeated calls touch no fresh memory (only the row-sized scratch of each task is allocated
+/// anew).
+pub fn blend_levels(
+    mut level: Map,
+    finest: Map,
+    coarse: &[Map],
+    (bilinear, size): (bool, usize),
+    scratch: &mut Scratch,
+) -> Map {
+    let mut filtered = Vec::with_capacity(coarse.len() + 1);
+    filtered.push(finest);
+    for lg in coarse {
+        let down = box_down2_planar(&level, scratch);
+        scratch.recycle(std::mem::replace(&mut level, down));
         filtered.push(filter_planar(&level, lg, size, scratch));
     }
     scratch.recycle(level);
@@ -183,7 +249,6 @@ pub fn apply_planar(
     let mut out = filtered.pop().expect("at least one level");
     for (l, mut fine) in filtered.into_iter().enumerate().rev() {
         let (lw, lh) = (fine.w, fine.h);
-        let blend = &logits[l].data[size * size * lw * lh..][..lw * lh];
         // The coarser result's difference from this level's own low band, once per coarse pixel.
         let mut correction = box_down2_planar(&fine, scratch);
         correction.data.par_chunks_mut(lw / 2).zip(out.data.par_chunks(lw / 2)).for_each(|(low, o)| {
@@ -192,15 +257,23 @@ pub fn apply_planar(
         // Its rows doubled along x once, for the two output rows that read each.
         let wide = widen_rows(&correction, bilinear, scratch);
         scratch.recycle(correction);
-        let coarse = (&wide.data[..], wide.w, wide.h);
-        rgb_rows(&mut fine.data, lw, lh).enumerate().for_each_init(
+        let (rgb, rest) = fine.data.split_at_mut(3 * lw * lh);
+        let blend = match l {
+            0 => &rest[..lw * lh],
+            _ => &coarse[l - 1].data[size * size * lw * lh..][..lw * lh],
+        };
+        let up = (&wide.data[..], wide.w, wide.h);
+        rgb_rows(rgb, lw, lh).enumerate().for_each_init(
             || vec![0.0f32; lw],
-            |alpha, (y, dst)| blend_row(dst, &blend[y * lw..][..lw], coarse, y, bilinear, alpha),
+            |alpha, (y, dst)| blend_row(dst, &blend[y * lw..][..lw], up, y, bilinear, alpha),
         );
         scratch.recycle(wide);
         scratch.recycle(std::mem::replace(&mut out, fine));
     }
-    out.data.par_chunks_mut(w).for_each(ln_1p_row);
+    // The finest map's blend plane is not part of the result.
+    out.c = 3;
+    out.data.truncate(3 * out.w * out.h);
+    out.data.par_chunks_mut(out.w).for_each(ln_1p_row);
     out
 }
 
@@ -284,44 +357,31 @@ fn box_down2_planar(img: &Map, scratch: &mut Scratch) -> Map {
 /// replicated; into a map from `scratch`. Row by row, every loop runs along the row, so the
 /// compiler vectorises it.
 fn filter_planar(img: &Map, logits: &Map, size: usize, scratch: &mut Scratch) -> Map {
-    let (w, h) = (logits.w, logits.h);
-    let r = size / 2;
-    // Each source row once, edge-replicated by r pixels on both sides, so a tap's shifted row
-    // is a plain slice.
-    let pw = w + 2 * r;
-    let mut padded = scratch.map(pw, h, 3);
-    padded.data.par_chunks_mut(pw).zip(img.data[..3 * w * h].par_chunks(w)).for_each(|(dst, src)| {
-        dst[..r].fill(src[0]);
-        dst[r..r + w].copy_from_slice(src);
-        dst[r + w..].fill(src[w - 1]);
-    });
-    // Row y of each of the three output planes, filled together from one softmax.
-    let mut out = scratch.map(w, h, 3);
-    rgb_rows(&mut out.data, w, h).enumerate().for_each_init(
-        || (vec![0.0f32; size * size * w], vec![0.0f32; w]),
-        |(taps, norm), (y, dst)| filter_row(logits, (&padded.data, pw, size), y, (taps, norm), dst),
-    );
-    scratch.recycle(padded);
+    let filter = RowFilter::new(img, size, scratch);
+    let mut out = scratch.map(img.w, img.h, 3);
+    filter.filter_rows(logits, 0, &mut out);
+    filter.recycle(scratch);
     out
 }
 
 multiversioned! {
-    /// Row `y` of [`filter_planar`]: the three channels' filtered rows into `dst`, from the
-    /// `padded` source planes (rows of `pw`) and K×K kernels, with `taps` (K² rows) and `norm`
-    /// (one) as scratch.
+    /// Row `y` of [`RowFilter::filter_rows`]: the three channels' filtered rows into `dst`, from
+    /// row `ly` of `logits` and the `padded` source planes (rows of `pw`, `h` rows each) with
+    /// K×K kernels, with `taps` (K² rows) and `norm` (one) as scratch.
     fn filter_row(
-        logits: &Map,
-        padded: (&[f32], usize, usize),
+        logits: (&Map, usize),
+        padded: (&[f32], usize, usize, usize),
         y: usize,
         scratch: (&mut [f32], &mut [f32]),
         dst: [&mut [f32]; 3],
     ) {
-        let (w, h) = (logits.w, logits.h);
-        let (padded, pw, size) = padded;
+        let (logits, ly) = logits;
+        let (w, lh) = (logits.w, logits.h);
+        let (padded, pw, size, h) = padded;
         let (taps, norm) = scratch;
         let (k2, r) = (size * size, size / 2);
         // Softmax over the taps, per pixel: exp(logit − max) / Σ.
-        let tap_row = |t: usize| &logits.data[(t * h + y) * w..][..w];
+        let tap_row = |t: usize| &logits.data[(t * lh + ly) * w..][..w];
         norm.copy_from_slice(tap_row(0));
         for t in 1..k2 {
             norm.iter_mut().zip(tap_row(t)).for_each(|(m, &v)| *m = m.max(v));

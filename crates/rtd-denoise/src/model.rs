@@ -572,6 +572,7 @@ mod tests {
         let shipped = DenoiserConfig::from_json(include_str!("../../../models/rtd-denoiser.json")).unwrap();
         assert_eq!((&shipped.channels, shipped.bottleneck_blocks, shipped.prong), (&vec![24, 48, 64], 2, 5));
         assert!(shipped.demodulates() && (shipped.exposure_key() - 2.88).abs() < 1e-6);
+        assert!(shipped.predicts_kernels() && shipped.blends_bilinearly() && shipped.kernel_size() == 7);
         assert_eq!(
             shipped.encoding(),
             Encoding { demodulate: true, key: shipped.exposure_key(), channels: INPUT_CHANNELS }
