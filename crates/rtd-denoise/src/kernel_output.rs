@@ -223,7 +223,7 @@ impl RowFilter {
 
 /// The fast path's [`KernelOutput::forward`] on planar maps, after the finest level's filter:
 /// `level` is the finest level's [`exposed_colour`], `finest` its filtered colour (planes 0–2)
-/// and, with coarser levels, its blend logit (plane 3), as [`RowFilter::filter_rows`] writes
+/// and, with coarser levels, its blend logit (plane 3), as [`RowFilter::filter_band`] writes
 /// them, and `coarse[l − 1]` the heads' outputs at level l ≥ 1 (K² kernel logits, then the
 /// blend logit at every level but the coarsest). `bilinear` and `size` (K) are
 /// [`KernelOutput`]'s fields of those names. Returns the three encoded output planes (in
